@@ -1,0 +1,5 @@
+"""``python -m bgsub`` is the same as the ``bgsub`` command."""
+
+from bgsub.cli import main
+
+raise SystemExit(main())

@@ -1,0 +1,96 @@
+"""The ``bgsub`` command line: a thin layer over the :mod:`bgsub` Python API.
+
+Each sub-command lives in its own module of this package and exposes
+``register(subparsers) -> None``, which adds its parser and sets ``handler=fn(args) -> int``.
+This module only dispatches and turns errors into one line on stderr:
+
+* :class:`bgsub.errors.BgsubError` -> its message, exit status ``err.exit_code`` (2 bad input, 1
+  failure while processing);
+* Ctrl-C -> exit status 130 (sinks have already closed their partial output and said so);
+* anything else is a bug: one line naming it, exit status 1 (``BGSUB_DEBUG=1`` shows the traceback).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import sys
+from typing import List, Optional
+
+from bgsub.errors import BgsubError
+
+# Sub-command modules, in the order `bgsub --help` lists them.
+_COMMANDS = (
+    "run",
+    "methods",
+    "evaluate",
+    "compare",
+    "samples",
+    "train",
+    "flow",
+    "analogy",
+    "bench",
+)
+
+_EPILOG = """\
+examples:
+  bgsub run samples/pan.mp4 -o pan_masks.mkv          foreground masks of the bundled sample
+  bgsub run clip.mp4 -o masks/ --method mog2          CDnet-style binNNNNNN.png masks, OpenCV MOG2
+  bgsub eval masks/ path/to/cdnet/sequence            the seven CDnet 2014 metrics
+  bgsub samples scenes/ --seed 1                      synthetic moving-camera scenes with ground truth
+  bgsub methods                                       engines and their parameters
+
+Run `bgsub COMMAND --help` for each command's options.
+"""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="bgsub",
+        description=(
+            "Find moving objects in video from a moving camera: a gated RBM learns how patches "
+            "move, RANSAC fits the camera motion, and what violates it is foreground."
+        ),
+        epilog=_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    from bgsub import __version__
+
+    parser.add_argument("--version", action="version", version=f"bgsub {__version__}")
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in _COMMANDS:
+        try:
+            module = importlib.import_module(f"bgsub.cli.{name}")
+        except ModuleNotFoundError as err:
+            if err.name == f"bgsub.cli.{name}":
+                continue  # command not built yet
+            raise
+        module.register(subparsers)
+    return parser
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    """Entry point of the ``bgsub`` console script; returns the exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "handler", None):
+        parser.print_help(sys.stderr)
+        return 2
+    try:
+        return int(args.handler(args) or 0)
+    except BgsubError as err:
+        print(f"bgsub: error: {err}", file=sys.stderr)
+        return err.exit_code
+    except KeyboardInterrupt:
+        print("bgsub: interrupted", file=sys.stderr)
+        return 130
+    except Exception as err:  # a bug: say so in one line unless asked for the traceback
+        if os.environ.get("BGSUB_DEBUG"):
+            raise
+        print(
+            f"bgsub: internal error: {type(err).__name__}: {err} "
+            "(set BGSUB_DEBUG=1 for the traceback)",
+            file=sys.stderr,
+        )
+        return 1

@@ -1,0 +1,32 @@
+"""Errors a user can act on.
+
+Every error bgsub raises on purpose is a :class:`BgsubError`; the CLI prints its message as one
+line on stderr and exits with :attr:`BgsubError.exit_code` (2 for bad input or output, 1 for a
+failure while processing). Anything else is a bug.
+"""
+
+from __future__ import annotations
+
+
+class BgsubError(Exception):
+    """Base class: a problem the user can fix; ``str(err)`` is the one-line message."""
+
+    exit_code = 2
+
+
+class InputError(BgsubError):
+    """Missing, unreadable or inconsistent input (video, image folder, ground truth, options)."""
+
+
+class OutputError(BgsubError):
+    """An output that exists (without ``overwrite``) or cannot be written."""
+
+
+class ModelError(BgsubError):
+    """A model file that is missing, corrupt, truncated or does not fit the request."""
+
+
+class ProcessingError(BgsubError):
+    """A failure during processing, after the inputs were accepted."""
+
+    exit_code = 1

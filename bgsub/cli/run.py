@@ -1,0 +1,154 @@
+"""``bgsub run``: foreground masks of a video, an image folder or a glob pattern.
+
+A thin layer: :func:`bgsub.sources.open_source` reads, an engine from :mod:`bgsub.engines` makes
+the masks, :func:`bgsub.sinks.process` writes them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+from pathlib import Path
+from typing import List, Optional
+
+from bgsub import engines
+from bgsub.cli import common
+from bgsub.errors import InputError, OutputError
+from bgsub.sinks import (
+    RunStats,
+    VideoSink,
+    VisSink,
+    check_mask_output,
+    check_video_output,
+    is_video_path,
+    open_mask_sink,
+    process,
+)
+from bgsub.sources import VideoInfo, open_source
+
+_DESCRIPTION = """\
+Find the moving objects in a video and write one foreground mask per frame (0 = background,
+255 = foreground). INPUT is a video file, a folder of images (natural order; a CDnet sequence
+folder reads its input/ folder) or a quoted glob pattern. OUTPUT is a mask video (.mkv or .avi:
+lossless FFV1; .mp4: lossy) or a folder of CDnet-style binNNNNNN.png masks numbered like the
+input frames (bin000123.png is the mask of in000123.jpg).
+
+Outputs are written under a temporary name and renamed when done; after Ctrl-C they hold the
+frames processed so far and are still valid."""
+
+_EPILOG = """\
+examples:
+  bgsub run clip.mp4 -o masks.mkv                      masks as a lossless video
+  bgsub run cdnet/cameraJitter/traffic -o traffic/     binNNNNNN.png masks for `bgsub eval`
+  bgsub run clip.mp4 -o masks.mkv --vis overlay.mp4    also a video of the masks over the input
+  bgsub run clip.mp4 -o masks.mkv --method mog2 --param history=200
+  bgsub run 'frames/*.png' -o masks/ --start 100 --stop 400 --step 2 --width 320
+  bgsub run clip.mp4 -o masks.mkv --flow-vis flow.mp4  the engine's motion field and camera fit
+
+`bgsub methods` lists the engines and their parameters."""
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "run", help="foreground masks of a video or image folder", description=_DESCRIPTION,
+        epilog=_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("input", metavar="INPUT",
+                        help="video file, image folder, or glob pattern such as 'frames/*.png'")
+    parser.add_argument("-o", "--output", required=True, metavar="OUTPUT",
+                        help="mask video (.mkv/.avi lossless, .mp4 lossy) or a folder for "
+                             "binNNNNNN.png masks")
+    parser.add_argument("-m", "--method", default=None, metavar="NAME",
+                        help="engine to use (default: the first available of "
+                             f"{', '.join(engines.DEFAULT_METHODS)}; see `bgsub methods`)")
+    parser.add_argument("-p", "--param", action="append", default=[], metavar="KEY=VALUE",
+                        help="set an engine parameter, e.g. --param history=200 (repeatable)")
+    parser.add_argument("--vis", metavar="VIDEO", default=None,
+                        help="also write the input with its mask overlaid, beside the mask "
+                             "(.mp4, .avi or .mkv)")
+    parser.add_argument("--flow-vis", metavar="VIDEO", default=None,
+                        help="also write the engine's picture of the motion it saw (engines "
+                             "with debug_image, such as grbm)")
+    common.add_source_options(parser)
+    common.add_output_options(parser)
+    parser.set_defaults(handler=run)
+
+
+def _method(name: Optional[str]) -> str:
+    if name:
+        return name
+    try:
+        return engines.default_method()
+    except StopIteration:  # no built-in engine is importable
+        raise InputError("no background-subtraction engine is available; give --method "
+                         "(see `bgsub methods`)") from None
+
+
+def _check_outputs(args: argparse.Namespace) -> None:
+    """Refuse bad outputs before any frame is processed."""
+    outputs = [("-o", args.output), ("--vis", args.vis), ("--flow-vis", args.flow_vis)]
+    outputs = [(flag, path) for flag, path in outputs if path]
+    check_mask_output(args.output, overwrite=args.overwrite)
+    for flag, path in outputs[1:]:
+        check_video_output(path, overwrite=args.overwrite)
+    source = Path(args.input).resolve()
+    seen = {}
+    for flag, path in outputs:
+        resolved = Path(path).resolve()
+        if resolved == source:
+            raise OutputError(f"{path}: {flag} would overwrite the input")
+        if resolved in seen:
+            raise OutputError(f"{path}: given to both {seen[resolved]} and {flag}")
+        seen[resolved] = flag
+
+
+def _summary(stats: RunStats, method: str, outputs: List[str]) -> str:
+    text = (f"{stats.frames} frames in {stats.seconds:.1f} s ({stats.fps:.1f} fps) with "
+            f"{method} -> {', '.join(outputs)}")
+    if stats.has_status:
+        text += f"; {stats.not_ok} frame{'s' * (stats.not_ok != 1)} not ok"
+        if stats.not_ok:
+            status, count = stats.statuses.most_common(1)[0]
+            text += f" (most often {status!r}: {count})"
+    return text
+
+
+def _fps_notice(info: VideoInfo, args: argparse.Namespace) -> Optional[str]:
+    writes_video = is_video_path(args.output) or args.vis or args.flow_vis
+    if info.fps_is_default and writes_video:
+        return f"{args.input} states no frame rate; videos are written at {info.fps:g} fps"
+    return None
+
+
+def run(args: argparse.Namespace) -> int:
+    method = _method(args.method)
+    params = engines.parse_params(method, args.param)
+    source = open_source(args.input, **common.source_kwargs(args))
+    info = source.info
+    _check_outputs(args)
+    engine = engines.create_engine(method, **params)
+    if args.flow_vis and not callable(getattr(engine, "debug_image", None)):
+        raise InputError(f"--flow-vis: method {method!r} cannot draw its motion (it has no "
+                         "debug_image); use a moving-camera method such as grbm")
+    notice = _fps_notice(info, args)
+    if notice:
+        common.note(notice, quiet=args.quiet)
+
+    with contextlib.ExitStack() as stack:
+        stack.enter_context(source)
+        masks = stack.enter_context(open_mask_sink(
+            args.output, width=info.width, height=info.height, fps=info.fps,
+            overwrite=args.overwrite))
+        vis = flow_vis = None
+        if args.vis:
+            vis = stack.enter_context(VisSink(args.vis, width=info.width, height=info.height,
+                                              fps=info.fps, overwrite=args.overwrite))
+        if args.flow_vis:
+            flow_vis = stack.enter_context(VideoSink(args.flow_vis, fps=info.fps,
+                                                     overwrite=args.overwrite))
+        frames = common.progress(source, total=info.frame_count, desc=method, quiet=args.quiet)
+        stats = process(frames, engine, masks, vis=vis, flow_vis=flow_vis)
+
+    common.note(_summary(stats, method, [p for p in (args.output, args.vis, args.flow_vis) if p]),
+                quiet=args.quiet)
+    return 0

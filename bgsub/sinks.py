@@ -1,0 +1,605 @@
+"""Sinks: where masks and pictures go, and the loop that feeds an engine's masks into them.
+
+* :func:`open_mask_sink` -- foreground masks, ``(H, W) uint8`` 0/255, as a lossless video
+  (``.mkv`` / ``.avi``: FFV1, so 0 and 255 come back exactly) or a CDnet-style folder of
+  ``binNNNNNN.png`` (numbered from the input frame, so ``bin000123.png`` is the mask of
+  ``in000123.jpg``); ``.mp4`` works too but is lossy (a warning says so).
+* :class:`VideoSink` -- colour pictures (flow visualisation, side-by-side comparisons) as a video
+  common players open: ``.mp4`` (mp4v), ``.avi`` (MJPG) or ``.mkv`` (FFV1). This OpenCV build
+  cannot encode H.264, so mp4v in ``.mp4`` is the most widely playable choice.
+* :class:`VisSink` -- the input with its mask overlaid (red tint and outline) beside the mask.
+* :func:`process` -- stream frames through an engine into these sinks (what ``bgsub run`` does).
+
+Every sink is a context manager that writes under a temporary name in the output's folder and
+renames it to the final name when closed. Closing also happens when the ``with`` block ends by
+an exception or Ctrl-C, so a partial video is still a valid, playable file; the sink then says on
+stderr that the output is partial and how many frames it holds. An existing output is refused
+(:class:`bgsub.errors.OutputError`) unless ``overwrite=True``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+import re
+import sys
+import time
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Iterable, Optional, Tuple, Union
+
+import numpy as np
+
+from bgsub.errors import OutputError
+from bgsub.sources import quiet_opencv
+
+import cv2  # noqa: E402,I100 (bgsub.sources sets FFmpeg's log level before cv2 starts FFmpeg)
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+#: Mask video codecs by extension: FFV1 is lossless, mp4v is not (masks come back blurred).
+MASK_VIDEO_CODECS = {".mkv": "FFV1", ".avi": "FFV1", ".mp4": "mp4v", ".mov": "mp4v"}
+
+#: Picture video codecs by extension, chosen to play in common players.
+PICTURE_VIDEO_CODECS = {".mp4": "mp4v", ".mov": "mp4v", ".avi": "MJPG", ".mkv": "FFV1"}
+
+_LOSSY_CODECS = {"mp4v", "MJPG"}
+
+# Extensions that look like something bgsub cannot write; refused rather than made into a folder.
+_UNSUPPORTED_VIDEO = {".webm", ".wmv", ".flv", ".mpg", ".mpeg", ".m4v", ".ts", ".ogv", ".gif",
+                      ".3gp", ".h264", ".264"}
+_IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp"}
+
+_MASK_NAME = re.compile(r"bin\d{6}\.png")
+_PARTIAL_MASK_NAME = re.compile(r"\.bin\d{6}\.partial\.png")
+
+
+def _say(message: str) -> None:
+    print(f"bgsub: {message}", file=sys.stderr, flush=True)
+
+
+def _reason(exc_type: Optional[type]) -> str:
+    return "interrupted" if exc_type is not None and issubclass(exc_type, KeyboardInterrupt) \
+        else "stopped by an error"
+
+
+def is_video_path(path: PathLike) -> bool:
+    """True when ``path``'s extension makes :func:`open_mask_sink` write a video."""
+    return Path(path).suffix.lower() in MASK_VIDEO_CODECS
+
+
+def _partial_path(path: Path) -> Path:
+    # Same folder (so the final rename is atomic) and same extension (OpenCV picks the container
+    # from it); the leading dot hides it from most file listings while it is being written.
+    return path.with_name(f".{path.stem}.partial{path.suffix}")
+
+
+def _check_writable_folder(folder: Path, output: Path) -> None:
+    if not folder.is_dir():
+        raise OutputError(f"{output}: the folder {folder} does not exist")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise OutputError(f"{output}: cannot write in the folder {folder} (permission denied)")
+
+
+def check_video_output(path: PathLike, *, overwrite: bool = False,
+                       codecs: Optional[dict] = None) -> Path:
+    """Check that a video can be written at ``path``; return it as a :class:`Path`.
+
+    Raises :class:`OutputError` when it exists (without ``overwrite``), is a folder, has an
+    extension with no codec in ``codecs`` (default: :data:`PICTURE_VIDEO_CODECS`), or its folder
+    is missing or read-only. Nothing is written.
+    """
+    codecs = PICTURE_VIDEO_CODECS if codecs is None else codecs
+    output = Path(path)
+    if output.suffix.lower() not in codecs:
+        known = ", ".join(sorted(codecs))
+        raise OutputError(f"{output}: cannot write a video with this extension (use {known})")
+    if output.is_dir():
+        raise OutputError(f"{output}: is a folder, not a video file")
+    if output.exists() and not overwrite:
+        raise OutputError(f"{output}: already exists (use --overwrite to replace it)")
+    _check_writable_folder(output.parent if str(output.parent) else Path("."), output)
+    return output
+
+
+def check_mask_output(path: PathLike, *, overwrite: bool = False) -> Path:
+    """Check that :func:`open_mask_sink` can write masks at ``path``; nothing is written.
+
+    A mask folder "exists" when it already holds ``binNNNNNN.png`` masks; an empty or unrelated
+    folder is fine. Raises :class:`OutputError` otherwise (see :func:`check_video_output`).
+    """
+    output = Path(path)
+    suffix = output.suffix.lower()
+    if suffix in MASK_VIDEO_CODECS:
+        return check_video_output(output, overwrite=overwrite, codecs=MASK_VIDEO_CODECS)
+    if suffix in _IMAGE_SUFFIXES or suffix in _UNSUPPORTED_VIDEO:
+        raise OutputError(
+            f"{output}: give a folder (for binNNNNNN.png masks) or a video ending in .mkv or "
+            ".avi (lossless) or .mp4 (lossy)"
+        )
+    if output.exists() and not output.is_dir():
+        raise OutputError(f"{output}: is a file, not a folder for masks")
+    if output.is_dir():
+        if not overwrite and any(_MASK_NAME.fullmatch(p.name) for p in output.iterdir()):
+            raise OutputError(f"{output}: already holds masks (binNNNNNN.png); use --overwrite "
+                              "to replace them")
+        _check_writable_folder(output, output)
+    else:
+        ancestor = output.parent
+        while not ancestor.exists() and ancestor != ancestor.parent:
+            ancestor = ancestor.parent
+        _check_writable_folder(ancestor, output)
+    return output
+
+
+# --------------------------------------------------------------------------------------------
+# Video files
+# --------------------------------------------------------------------------------------------
+
+
+class _VideoFile:
+    """One ``cv2.VideoWriter`` written under a temporary name and renamed when closed."""
+
+    def __init__(self, path: Path, *, codec: str, fps: float, is_color: bool) -> None:
+        if not (math.isfinite(fps) and fps > 0):
+            raise OutputError(f"{path}: invalid frame rate {fps!r} for a video")
+        self.path = path
+        self.codec = codec
+        self.fps = float(fps)
+        self.is_color = is_color
+        self.size: Optional[Tuple[int, int]] = None  # (width, height) once open
+        self.frames_written = 0
+        self._temp = _partial_path(path)
+        self._writer: Optional[cv2.VideoWriter] = None
+
+    def open(self, width: int, height: int) -> None:
+        try:
+            if self._temp.exists():  # left by a run that was killed outright
+                self._temp.unlink()
+        except OSError as err:
+            raise OutputError(f"{self.path}: cannot replace {self._temp} ({err.strerror})") \
+                from None
+        with quiet_opencv():
+            writer = cv2.VideoWriter(str(self._temp), cv2.CAP_FFMPEG,
+                                     cv2.VideoWriter_fourcc(*self.codec), self.fps,
+                                     (int(width), int(height)), self.is_color)
+        if not writer.isOpened():
+            writer.release()
+            with contextlib.suppress(OSError):
+                self._temp.unlink()
+            raise OutputError(f"{self.path}: OpenCV cannot open a {self.codec} video writer "
+                              f"for {width}x{height} frames here")
+        self._writer = writer
+        self.size = (int(width), int(height))
+
+    def write(self, image: np.ndarray) -> None:
+        assert self._writer is not None, "write() before open()"
+        self._writer.write(image)
+        self.frames_written += 1
+
+    def close(self) -> None:
+        """Finish the file and move it to its final name (removed if it holds no frame)."""
+        if self._writer is None:
+            return
+        self._writer.release()
+        self._writer = None
+        if self.frames_written == 0:
+            with contextlib.suppress(OSError):
+                self._temp.unlink()
+            return
+        try:
+            os.replace(self._temp, self.path)
+        except OSError as err:
+            raise OutputError(f"{self.path}: cannot move the finished video here "
+                              f"({err.strerror}); it is at {self._temp}") from None
+
+
+def _check_image(image: np.ndarray, *, ndims: Tuple[int, ...], what: str) -> None:
+    if not isinstance(image, np.ndarray) or image.dtype != np.uint8 or image.ndim not in ndims \
+            or (image.ndim == 3 and image.shape[2] != 3):
+        shape = getattr(image, "shape", None)
+        dtype = getattr(image, "dtype", type(image).__name__)
+        wanted = " or ".join(_SHAPES[n] for n in ndims)
+        raise ValueError(f"{what} must be a uint8 array of shape {wanted}, got shape {shape} "
+                         f"dtype {dtype}")
+
+
+_SHAPES = {2: "(H, W)", 3: "(H, W, 3)"}
+
+
+class _Sink:
+    """Context-manager behaviour shared by every sink: close, and report a partial output."""
+
+    path: Path
+
+    @property
+    def frames_written(self) -> int:  # pragma: no cover (overridden)
+        raise NotImplementedError
+
+    def close(self) -> None:  # pragma: no cover (overridden)
+        raise NotImplementedError
+
+    def _partial_message(self, reason: str) -> str:
+        n = self.frames_written
+        if n == 0:
+            return f"{self.path}: not written ({reason} before the first frame)"
+        return f"{self.path} is partial ({reason}) but valid: it holds {n} frame{'s' * (n != 1)}"
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        self.close()
+        interrupted = exc_type is not None and issubclass(exc_type, KeyboardInterrupt)
+        # A sink that never got a frame because opening a later output failed stays silent: the
+        # error itself is the one line the user needs.
+        if exc_type is not None and (self.frames_written or interrupted):
+            _say(self._partial_message(_reason(exc_type)))
+
+
+# --------------------------------------------------------------------------------------------
+# Masks
+# --------------------------------------------------------------------------------------------
+
+
+class MaskSink(_Sink):
+    """Where ``(H, W) uint8`` 0/255 masks go; built by :func:`open_mask_sink`.
+
+    Attributes
+    ----------
+    path : Path
+        The final output (video file or folder).
+    width, height : int
+        The mask size every :meth:`write` must have.
+    frames_written : int
+        Masks written so far.
+    """
+
+    def __init__(self, path: Path, *, width: int, height: int) -> None:
+        self.path = path
+        self.width = int(width)
+        self.height = int(height)
+
+    def write(self, mask: np.ndarray, index: Optional[int] = None) -> None:
+        """Write the next mask.
+
+        Parameters
+        ----------
+        mask : (H, W) uint8 array
+            0 = background, 255 = foreground; ``H, W`` = this sink's ``height, width``.
+        index : int, optional
+            0-based index of the input frame the mask belongs to; it names the PNG
+            (``bin{index + 1:06d}.png``). Videos ignore it (frames follow the order written).
+            ``None`` numbers masks 1, 2, ... in the order written.
+        """
+        _check_image(mask, ndims=(2,), what="a mask")
+        if mask.shape != (self.height, self.width):
+            raise ValueError(f"a mask must be {self.width}x{self.height} for {self.path}, got "
+                             f"{mask.shape[1]}x{mask.shape[0]}")
+        self._write(mask, index)
+
+    def _write(self, mask: np.ndarray, index: Optional[int]) -> None:  # pragma: no cover
+        raise NotImplementedError
+
+
+class MaskVideoSink(MaskSink):
+    """Masks as a gray video: lossless FFV1 in ``.mkv``/``.avi``, lossy mp4v in ``.mp4``."""
+
+    def __init__(self, path: Path, *, width: int, height: int, fps: float) -> None:
+        super().__init__(path, width=width, height=height)
+        codec = MASK_VIDEO_CODECS[path.suffix.lower()]
+        self._video = _VideoFile(path, codec=codec, fps=fps, is_color=False)
+        self._video.open(width, height)
+        if codec in _LOSSY_CODECS:
+            _say(f"warning: {path}: {codec} is lossy, mask values will not stay exactly 0/255; "
+                 "use .mkv or .avi (lossless FFV1) or a folder of PNGs for exact masks")
+
+    @property
+    def frames_written(self) -> int:
+        return self._video.frames_written
+
+    def _write(self, mask: np.ndarray, index: Optional[int]) -> None:
+        self._video.write(mask)
+
+    def close(self) -> None:
+        self._video.close()
+
+
+class MaskFolderSink(MaskSink):
+    """Masks as CDnet-style ``binNNNNNN.png`` files in a folder (created if missing).
+
+    Each PNG is written under a hidden temporary name and renamed, so every ``bin*.png`` in the
+    folder is complete at any moment, including after Ctrl-C. Writing file by file rather than to
+    a temporary folder renamed at the end lets the output be an existing folder (say, one that
+    holds other results) without moving or deleting anything but its old masks.
+    """
+
+    def __init__(self, path: Path, *, width: int, height: int) -> None:
+        super().__init__(path, width=width, height=height)
+        try:
+            path.mkdir(parents=True, exist_ok=True)
+            for old in path.iterdir():  # check_mask_output refused these unless overwrite=True
+                if _MASK_NAME.fullmatch(old.name) or _PARTIAL_MASK_NAME.fullmatch(old.name):
+                    old.unlink()
+        except OSError as err:
+            raise OutputError(f"{path}: cannot prepare the mask folder ({err.strerror})") from None
+        self._count = 0
+        self._last: Optional[str] = None
+
+    @property
+    def frames_written(self) -> int:
+        return self._count
+
+    def _write(self, mask: np.ndarray, index: Optional[int]) -> None:
+        number = (self._count if index is None else int(index)) + 1
+        name = f"bin{number:06d}.png"
+        temp = self.path / f".bin{number:06d}.partial.png"
+        if not cv2.imwrite(str(temp), mask):
+            raise OutputError(f"{self.path / name}: cannot write the mask")
+        try:
+            os.replace(temp, self.path / name)
+        except OSError as err:
+            raise OutputError(f"{self.path / name}: cannot write the mask ({err.strerror})") \
+                from None
+        self._count += 1
+        self._last = name
+
+    def close(self) -> None:
+        pass  # every PNG is already complete
+
+    def _partial_message(self, reason: str) -> str:
+        if self._count == 0:
+            return super()._partial_message(reason)
+        s = "s" * (self._count != 1)
+        return f"{self.path} is partial ({reason}) but valid: it holds {self._count} mask{s}, " \
+               f"the last {self._last}"
+
+
+def open_mask_sink(path: PathLike, *, width: int, height: int, fps: float,
+                   overwrite: bool = False) -> MaskSink:
+    """Open where masks of ``width`` x ``height`` go.
+
+    Parameters
+    ----------
+    path : str or path
+        ``.mkv`` / ``.avi``: a lossless FFV1 gray video; ``.mp4`` / ``.mov``: a lossy mp4v video
+        (warns); anything else: a folder of ``binNNNNNN.png`` (created if missing).
+    width, height : int
+        Size of the masks to be written.
+    fps : float
+        Frame rate of a mask video (ignored for folders).
+    overwrite : bool
+        Replace an existing video, or the ``binNNNNNN.png`` masks of an existing folder.
+
+    Returns
+    -------
+    MaskSink
+        A context manager; ``write(mask (H, W) uint8, index)`` per frame.
+
+    Raises
+    ------
+    OutputError
+        The output exists (without ``overwrite``), its folder is missing or read-only, or the
+        video writer cannot be opened.
+    """
+    output = check_mask_output(path, overwrite=overwrite)
+    if output.suffix.lower() in MASK_VIDEO_CODECS:
+        return MaskVideoSink(output, width=width, height=height, fps=fps)
+    return MaskFolderSink(output, width=width, height=height)
+
+
+# --------------------------------------------------------------------------------------------
+# Pictures
+# --------------------------------------------------------------------------------------------
+
+
+class VideoSink(_Sink):
+    """A colour video of pictures: ``.mp4`` (mp4v), ``.avi`` (MJPG) or ``.mkv`` (FFV1).
+
+    Parameters
+    ----------
+    path : str or path
+        The video to write.
+    fps : float
+        Its frame rate.
+    width, height : int, optional
+        Picture size; when not given, the first picture written fixes it.
+    overwrite : bool
+        Replace an existing file.
+    """
+
+    def __init__(self, path: PathLike, *, fps: float, width: Optional[int] = None,
+                 height: Optional[int] = None, overwrite: bool = False) -> None:
+        self.path = check_video_output(path, overwrite=overwrite)
+        codec = PICTURE_VIDEO_CODECS[self.path.suffix.lower()]
+        self._video = _VideoFile(self.path, codec=codec, fps=fps, is_color=True)
+        self._blanks = 0  # pictures skipped before the size was known
+        if width is not None and height is not None:
+            self._video.open(width, height)
+
+    @property
+    def frames_written(self) -> int:
+        return self._video.frames_written
+
+    def write(self, image: np.ndarray) -> None:
+        """Write the next picture, ``(H, W, 3)`` BGR or ``(H, W)`` gray uint8, all the same size."""
+        _check_image(image, ndims=(2, 3), what="a picture")
+        if image.ndim == 2:
+            image = cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
+        height, width = image.shape[:2]
+        if self._video.size is None:
+            self._video.open(width, height)
+            for _ in range(self._blanks):
+                self._video.write(np.zeros_like(image))
+            self._blanks = 0
+        elif self._video.size != (width, height):
+            w, h = self._video.size
+            raise ValueError(f"pictures for {self.path} must all be {w}x{h}, got {width}x{height}")
+        self._video.write(image)
+
+    def write_blank(self) -> None:
+        """A frame with no picture: written black, so the video stays in step with the input."""
+        if self._video.size is None:
+            self._blanks += 1
+        else:
+            w, h = self._video.size
+            self._video.write(np.zeros((h, w, 3), np.uint8))
+
+    def close(self) -> None:
+        if self._video.size is None and self._blanks:
+            _say(f"{self.path}: not written, there was no picture to write")
+            self._blanks = 0
+        self._video.close()
+
+
+def render_overlay(frame: np.ndarray, mask: np.ndarray, *,
+                   color: Tuple[int, int, int] = (0, 0, 255), alpha: float = 0.45) -> np.ndarray:
+    """The frame with its mask tinted and outlined, beside the mask.
+
+    Parameters
+    ----------
+    frame : (H, W, 3) BGR or (H, W) gray uint8 array
+    mask : (H, W) uint8 array, 0 = background, nonzero = foreground
+    color : BGR colour of the tint and outline (default red)
+    alpha : strength of the tint
+
+    Returns
+    -------
+    (H, 2 * W, 3) uint8 array: overlay on the left, the mask on the right.
+    """
+    if frame.ndim == 2:
+        frame = cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR)
+    foreground = (mask > 0).astype(np.uint8)
+    tinted = cv2.addWeighted(frame, 1.0 - alpha, np.full_like(frame, color), alpha, 0.0)
+    overlay = frame.copy()
+    cv2.copyTo(tinted, foreground, overlay)  # tint only under the mask (10x faster than np.where)
+    contours, _ = cv2.findContours(foreground, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    cv2.drawContours(overlay, contours, -1, color, 1, cv2.LINE_AA)
+    return np.hstack([overlay, cv2.cvtColor(mask, cv2.COLOR_GRAY2BGR)])
+
+
+class VisSink(_Sink):
+    """A video of each input frame with its mask overlaid, beside the mask (``2W x H``).
+
+    Parameters
+    ----------
+    path : str or path
+        ``.mp4`` (mp4v), ``.avi`` (MJPG) or ``.mkv`` (FFV1).
+    width, height : int
+        Size of the input frames (the video is ``2 * width`` wide).
+    fps : float
+        Frame rate.
+    overwrite : bool
+        Replace an existing file.
+    """
+
+    def __init__(self, path: PathLike, *, width: int, height: int, fps: float,
+                 overwrite: bool = False) -> None:
+        self._video = VideoSink(path, fps=fps, width=2 * int(width), height=int(height),
+                                overwrite=overwrite)
+        self.path = self._video.path
+
+    @property
+    def frames_written(self) -> int:
+        return self._video.frames_written
+
+    def write(self, frame: np.ndarray, mask: np.ndarray) -> None:
+        """Write ``frame`` (H, W, 3) uint8 with ``mask`` (H, W) uint8 0/255."""
+        self._video.write(render_overlay(frame, mask))
+
+    def close(self) -> None:
+        self._video.close()
+
+
+# --------------------------------------------------------------------------------------------
+# The processing loop
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass
+class RunStats:
+    """What :func:`process` did.
+
+    Attributes
+    ----------
+    frames : int
+        Frames processed.
+    seconds : float
+        Wall-clock time of the loop (reading, engine, writing).
+    statuses : Counter
+        How many frames ended with each ``engine.last_status`` other than ``"ok"``.
+    has_status : bool
+        Whether the engine reports a ``last_status`` at all.
+    """
+
+    frames: int = 0
+    seconds: float = 0.0
+    statuses: Counter = field(default_factory=Counter)
+    has_status: bool = False
+
+    @property
+    def fps(self) -> float:
+        """Frames processed per second."""
+        return self.frames / self.seconds if self.seconds > 0 else float("inf")
+
+    @property
+    def not_ok(self) -> int:
+        """Frames whose engine status was not ``"ok"``."""
+        return sum(self.statuses.values())
+
+
+def process(frames: Iterable[Tuple[int, np.ndarray]], engine, masks: MaskSink, *,
+            vis: Optional[VisSink] = None, flow_vis: Optional[VideoSink] = None,
+            on_frame: Optional[Callable[[int, np.ndarray], None]] = None) -> RunStats:
+    """Run ``engine`` over ``frames`` and write its masks (and pictures) to the sinks.
+
+    Parameters
+    ----------
+    frames : iterable of (int, (H, W, 3) uint8)
+        ``(index, frame)`` pairs, e.g. a :class:`bgsub.sources.FrameSource` (or one wrapped in a
+        progress bar).
+    engine : Engine
+        Anything with OpenCV's ``apply(image) -> (H, W) uint8 mask``.
+    masks : MaskSink
+        Gets every mask, with its frame index.
+    vis : VisSink, optional
+        Gets every frame with its mask.
+    flow_vis : VideoSink, optional
+        Gets ``engine.debug_image()`` after every frame (black where it returns ``None``, so the
+        video stays in step with the input); the engine must have ``debug_image``.
+    on_frame : callable(index, mask), optional
+        Called after every frame is written.
+
+    Returns
+    -------
+    RunStats
+        Frames, time, and the frames whose ``engine.last_status`` was not ``"ok"``.
+
+    The sinks are not closed here: open them in ``with`` blocks around this call, so Ctrl-C or an
+    error leaves valid partial outputs.
+    """
+    if flow_vis is not None and not callable(getattr(engine, "debug_image", None)):
+        raise TypeError(f"{type(engine).__name__} has no debug_image() for a flow visualisation")
+    stats = RunStats(has_status=hasattr(engine, "last_status"))
+    started = time.perf_counter()
+    for index, frame in frames:
+        mask = engine.apply(frame)
+        masks.write(mask, index)
+        if vis is not None:
+            vis.write(frame, mask)
+        if flow_vis is not None:
+            picture = engine.debug_image()
+            if picture is None:
+                flow_vis.write_blank()
+            else:
+                flow_vis.write(picture)
+        status = getattr(engine, "last_status", None)
+        if status is not None and status != "ok":
+            stats.statuses[str(status)] += 1
+        stats.frames += 1
+        if on_frame is not None:
+            on_frame(index, mask)
+    stats.seconds = time.perf_counter() - started
+    return stats

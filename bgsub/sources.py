@@ -1,0 +1,404 @@
+"""Frame sources: a video file, a folder of images or a glob pattern, behind one interface.
+
+Every source streams: it holds one decoded frame at a time (listing file names is the only thing
+kept for a whole input), so memory stays flat however long the input is::
+
+    with open_source("clip.mp4", step=2, width=320) as source:
+        print(source.info)                    # size, fps, frames it will yield
+        for index, frame in source:           # index in the full input, frame (H, W, 3) uint8 BGR
+            ...
+
+The backends (PySceneDetect style):
+
+* **video** -- any file OpenCV's FFmpeg backend decodes
+  (``cv2.VideoCapture(path, cv2.CAP_FFMPEG)``);
+* **folder** -- the images of a folder in natural order (``in2.jpg`` before ``in10.jpg``); a CDnet
+  sequence folder (one holding ``input/``) reads its ``input/`` folder;
+* **glob** -- the images matching a pattern such as ``"frames/*.png"``, in natural order.
+
+Problems a user can fix (missing or unreadable input, mixed image sizes, frames smaller than a
+patch, an empty frame range, bad options) raise :class:`bgsub.errors.InputError` with one line.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import glob
+import math
+import numbers
+import os
+import re
+import weakref
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterator, List, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+# FFmpeg prints its own complaints ("moov atom not found", ...) straight to stderr; bgsub reports
+# unreadable input itself in one line. OpenCV reads this variable when its FFmpeg backend starts,
+# so it has to be set before cv2 decodes anything; a value the user set is kept.
+os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # AV_LOG_QUIET
+
+import cv2  # noqa: E402 (after the environment variable above)
+
+from bgsub.errors import InputError  # noqa: E402
+
+#: Side of the square patches the motion model reads; smaller frames cannot be processed.
+MIN_FRAME_SIZE = 13
+
+#: Frame rate reported for image folders and videos that do not state one.
+DEFAULT_FPS = 25.0
+
+#: File name extensions read as images (what ``cv2.imread`` decodes); other files are ignored.
+IMAGE_EXTENSIONS = frozenset(
+    {".bmp", ".dib", ".jpg", ".jpeg", ".jpe", ".jp2", ".png", ".webp", ".pbm", ".pgm", ".ppm",
+     ".pnm", ".tif", ".tiff", ".sr", ".ras", ".exr", ".hdr", ".pic"}
+)
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+
+@dataclass(frozen=True)
+class VideoInfo:
+    """What a :class:`FrameSource` will yield.
+
+    Attributes
+    ----------
+    path : str
+        The input as given.
+    width, height : int
+        Size of the yielded frames, after resizing.
+    fps : float
+        Frame rate of the yielded stream: the input's rate divided by ``step``, so a video written
+        from it plays at the input's speed. :data:`DEFAULT_FPS` for image folders.
+    fps_is_default : bool
+        True when the input states no frame rate and :data:`DEFAULT_FPS` was assumed.
+    frame_count : int or None
+        Number of frames this source yields (after start/stop/step), ``None`` if the video does
+        not say how long it is.
+    kind : str
+        ``"video"``, ``"folder"`` or ``"glob"``.
+    """
+
+    path: str
+    width: int
+    height: int
+    fps: float
+    fps_is_default: bool
+    frame_count: Optional[int]
+    kind: str
+
+
+@contextlib.contextmanager
+def quiet_opencv() -> Iterator[None]:
+    """Silence OpenCV's own log lines (``[ WARN:0@0.01] ...``) inside the ``with`` block."""
+    logging = cv2.utils.logging
+    previous = logging.getLogLevel()
+    logging.setLogLevel(logging.LOG_LEVEL_SILENT)
+    try:
+        yield
+    finally:
+        logging.setLogLevel(previous)
+
+
+def natural_key(text: str) -> list:
+    """Sort key that orders the digit runs of ``text`` as numbers: ``in2.jpg`` < ``in10.jpg``."""
+    # re.split with a group alternates text, number, text, ..., so keys compare type-wise.
+    return [int(part) if part.isdigit() else part.lower() for part in re.split(r"(\d+)", text)]
+
+
+def _size_text(shape: Sequence[int]) -> str:
+    return f"{shape[1]}x{shape[0]}"
+
+
+def _as_bgr(frame: np.ndarray) -> np.ndarray:
+    """``(H, W)``, ``(H, W, 1)``, ``(H, W, 3)`` or ``(H, W, 4)`` uint8 -> ``(H, W, 3)`` BGR."""
+    if frame.ndim == 3 and frame.shape[2] == 3:
+        return frame
+    if frame.ndim == 3 and frame.shape[2] == 4:
+        return cv2.cvtColor(frame, cv2.COLOR_BGRA2BGR)
+    return cv2.cvtColor(frame.reshape(frame.shape[:2]), cv2.COLOR_GRAY2BGR)
+
+
+# --------------------------------------------------------------------------------------------
+# Backends: each yields (index, raw frame) for a frame range; FrameSource does the rest.
+# --------------------------------------------------------------------------------------------
+
+
+class _VideoBackend:
+    """A video file read with OpenCV's FFmpeg backend."""
+
+    kind = "video"
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        capture = self._open()
+        try:
+            ok, frame = capture.read()
+            if not ok or frame is None:
+                raise InputError(f"{path}: the video has no frames that can be decoded")
+            self.first_shape: Tuple[int, ...] = frame.shape
+            fps = capture.get(cv2.CAP_PROP_FPS)
+            count = int(capture.get(cv2.CAP_PROP_FRAME_COUNT))
+        finally:
+            capture.release()
+        self.fps_is_default = not (math.isfinite(fps) and 0 < fps <= 1000)
+        self.fps = DEFAULT_FPS if self.fps_is_default else float(fps)
+        # The container's count; some containers only estimate it, so iteration never relies on it.
+        self.total: Optional[int] = count if count > 0 else None
+
+    def _open(self) -> "cv2.VideoCapture":
+        with quiet_opencv():
+            capture = cv2.VideoCapture(str(self.path), cv2.CAP_FFMPEG)
+        if not capture.isOpened():
+            raise InputError(
+                f"{self.path}: cannot read it as a video (not a video file, or a format "
+                "OpenCV's FFmpeg cannot decode)"
+            )
+        return capture
+
+    def describe(self, index: int) -> str:
+        return f"frame {index} of {self.path}"
+
+    def frames(self, start: int, stop: Optional[int], step: int
+               ) -> Iterator[Tuple[int, np.ndarray]]:
+        capture = self._open()
+        try:
+            # Skip by decoding rather than seeking with CAP_PROP_POS_FRAMES: seeking lands on a
+            # nearby key frame in some containers, and masks must match frame numbers exactly.
+            for index in range(start):
+                if not capture.grab():
+                    raise InputError(
+                        f"{self.path}: start frame {start} is past the end of the video "
+                        f"({index} frames)"
+                    )
+            index = start
+            while stop is None or index < stop:
+                ok, frame = capture.read()
+                if not ok or frame is None:
+                    return
+                yield index, frame
+                for _ in range(step - 1):
+                    if not capture.grab():
+                        return
+                index += step
+        finally:
+            capture.release()
+
+
+class _ImageListBackend:
+    """Images read one at a time from a list of files (a folder or a glob pattern)."""
+
+    fps = DEFAULT_FPS
+    fps_is_default = True
+
+    def __init__(self, files: List[Path], kind: str) -> None:
+        self.files = files
+        self.kind = kind
+        self.total: Optional[int] = len(files)
+        self.first_shape: Tuple[int, ...] = ()
+
+    def read(self, index: int) -> np.ndarray:
+        path = self.files[index]
+        with quiet_opencv():
+            image = cv2.imread(str(path), cv2.IMREAD_COLOR)
+        if image is None:
+            raise InputError(f"{path}: cannot read this image (corrupt or not an image)")
+        return image
+
+    def describe(self, index: int) -> str:
+        return str(self.files[index])
+
+    def frames(self, start: int, stop: Optional[int], step: int
+               ) -> Iterator[Tuple[int, np.ndarray]]:
+        end = len(self.files) if stop is None else min(stop, len(self.files))
+        for index in range(start, end, step):
+            yield index, self.read(index)
+
+
+def _is_image_file(path: Path) -> bool:
+    # Names starting with "." are hidden files such as macOS "._in000001.jpg" resource forks.
+    return path.suffix.lower() in IMAGE_EXTENSIONS and not path.name.startswith(".") \
+        and path.is_file()
+
+
+def _folder_backend(folder: Path) -> _ImageListBackend:
+    if (folder / "input").is_dir():  # a CDnet sequence: NAME/input/in000001.jpg ...
+        folder = folder / "input"
+    try:
+        entries = list(folder.iterdir())
+    except OSError as err:
+        raise InputError(f"{folder}: cannot list the folder ({err.strerror})") from None
+    files = sorted((p for p in entries if _is_image_file(p)), key=lambda p: natural_key(p.name))
+    if not files:
+        raise InputError(f"{folder}: the folder holds no images")
+    return _ImageListBackend(files, "folder")
+
+
+def _glob_backend(pattern: str) -> _ImageListBackend:
+    matches = [Path(p) for p in glob.glob(pattern)]
+    files = sorted((p for p in matches if _is_image_file(p)), key=lambda p: natural_key(str(p)))
+    if not files:
+        what = "no images" if matches else "nothing"
+        raise InputError(f"{pattern}: {what} matches this pattern")
+    return _ImageListBackend(files, "glob")
+
+
+# --------------------------------------------------------------------------------------------
+# The source users see.
+# --------------------------------------------------------------------------------------------
+
+
+class FrameSource:
+    """Frames of one input, streamed: a context manager and an iterable.
+
+    Iterating yields ``(index, frame)``: ``index`` is the frame's 0-based position in the full
+    input (so ``start=10, step=5`` yields 10, 15, 20, ...), ``frame`` an ``(H, W, 3) uint8`` BGR
+    array of :attr:`info`'s size. A source can be iterated more than once; each pass reads the
+    input again. Build one with :func:`open_source`.
+    """
+
+    def __init__(self, backend, info: VideoInfo, *, start: int, stop: Optional[int], step: int,
+                 ) -> None:
+        self.info = info
+        self._backend = backend
+        self._range = (start, stop, step)
+        self._iterators: "weakref.WeakSet" = weakref.WeakSet()
+        self._closed = False
+
+    def __enter__(self) -> "FrameSource":
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Stop any iteration in progress and release the decoder."""
+        self._closed = True
+        for iterator in list(self._iterators):
+            iterator.close()
+
+    def __iter__(self) -> Iterator[Tuple[int, np.ndarray]]:
+        if self._closed:
+            raise ValueError("iterating a closed FrameSource")
+        iterator = self._frames()
+        self._iterators.add(iterator)
+        return iterator
+
+    def __repr__(self) -> str:
+        return f"FrameSource({self.info})"
+
+    def _frames(self) -> Iterator[Tuple[int, np.ndarray]]:
+        size = (self.info.width, self.info.height)
+        reference: Optional[Tuple[Tuple[int, ...], int]] = None  # (shape, index) of 1st frame
+        for index, raw in self._backend.frames(*self._range):
+            if reference is None:
+                reference = (raw.shape[:2], index)
+            elif raw.shape[:2] != reference[0]:
+                raise InputError(
+                    f"{self._backend.describe(index)} is {_size_text(raw.shape)} but "
+                    f"{self._backend.describe(reference[1])} is {_size_text(reference[0])}: all "
+                    "frames must have the same size"
+                )
+            frame = _as_bgr(raw)
+            if (frame.shape[1], frame.shape[0]) != size:
+                shrinking = size[0] < frame.shape[1]
+                frame = cv2.resize(frame, size, interpolation=cv2.INTER_AREA if shrinking
+                                   else cv2.INTER_LINEAR)
+            yield index, frame
+
+
+def _check_range(start: int, stop: Optional[int], step: int) -> None:
+    if not isinstance(start, (int, np.integer)) or start < 0:
+        raise InputError(f"invalid frame range: start must be a frame number >= 0, not {start!r}")
+    if stop is not None and (not isinstance(stop, (int, np.integer)) or stop <= start):
+        raise InputError(f"invalid frame range: stop ({stop!r}) must be after start ({start})")
+    if not isinstance(step, (int, np.integer)) or step < 1:
+        raise InputError(f"invalid frame range: step must be at least 1, not {step!r}")
+
+
+def output_size(width: int, height: int, *, scale: Optional[float] = None,
+                target_width: Optional[int] = None) -> Tuple[int, int]:
+    """Size ``(width, height)`` of frames resized by ``scale`` or to ``target_width``.
+
+    The aspect ratio is kept; with neither option the size is unchanged.
+    """
+    if scale is not None and target_width is not None:
+        raise InputError("give either a scale or a width to resize to, not both")
+    if scale is not None:
+        if not (isinstance(scale, numbers.Real) and math.isfinite(scale) and scale > 0):
+            raise InputError(f"invalid scale {scale!r}: it must be a number > 0, e.g. 0.5")
+        return max(1, round(width * scale)), max(1, round(height * scale))
+    if target_width is not None:
+        if not isinstance(target_width, (int, np.integer)) or target_width < 1:
+            raise InputError(f"invalid width {target_width!r}: it must be a whole number of "
+                             "pixels >= 1")
+        return int(target_width), max(1, round(height * target_width / width))
+    return width, height
+
+
+def open_source(path: PathLike, *, start: int = 0, stop: Optional[int] = None, step: int = 1,
+                scale: Optional[float] = None, width: Optional[int] = None) -> FrameSource:
+    """Open a video file, an image folder or a glob pattern as a stream of frames.
+
+    Parameters
+    ----------
+    path : str or path
+        A video file, a folder of images (a CDnet sequence folder reads its ``input/``), or a
+        glob pattern such as ``"frames/*.png"``.
+    start, stop, step : int
+        Read frames ``start, start + step, ...`` before ``stop`` (0-based; ``stop=None`` is the
+        end), like ``range(start, stop, step)``.
+    scale : float, optional
+        Resize every frame by this factor (``cv2.INTER_AREA`` when shrinking).
+    width : int, optional
+        Resize every frame to this width, keeping the aspect ratio. Exclusive with ``scale``.
+
+    Returns
+    -------
+    FrameSource
+        Yields ``(index, (H, W, 3) uint8 BGR frame)``; ``.info`` is a :class:`VideoInfo`.
+
+    Raises
+    ------
+    InputError
+        Missing or unreadable input, no frames, frames smaller than ``MIN_FRAME_SIZE``, a frame
+        range past the end, or invalid options. Images of mixed sizes and unreadable images are
+        reported when iteration reaches them.
+    """
+    _check_range(start, stop, step)
+    text = os.fspath(path)
+    location = Path(text)
+    if location.is_dir():
+        backend = _folder_backend(location)
+    elif location.is_file():
+        backend = _VideoBackend(location)
+    elif glob.has_magic(text):
+        backend = _glob_backend(text)
+    else:
+        raise InputError(f"{text}: no such file or folder")
+
+    total = backend.total
+    if total is not None and start >= total:
+        raise InputError(f"{text}: start frame {start} is past the end of the input "
+                         f"({total} frames)")
+    if isinstance(backend, _ImageListBackend):
+        # The first frame in range fixes the size every other frame must have.
+        backend.first_shape = backend.read(start).shape
+    raw_h, raw_w = backend.first_shape[:2]
+    out_w, out_h = output_size(raw_w, raw_h, scale=scale, target_width=width)
+    if min(out_w, out_h) < MIN_FRAME_SIZE:
+        resized = f" after resizing from {raw_w}x{raw_h}" if (out_w, out_h) != (raw_w, raw_h) \
+            else ""
+        raise InputError(
+            f"{text}: frames are {out_w}x{out_h}{resized}, smaller than the "
+            f"{MIN_FRAME_SIZE}x{MIN_FRAME_SIZE} patches bgsub reads"
+        )
+
+    count = None
+    if total is not None:
+        count = len(range(start, total if stop is None else min(stop, total), step))
+    info = VideoInfo(path=text, width=out_w, height=out_h, fps=backend.fps / step,
+                     fps_is_default=backend.fps_is_default, frame_count=count, kind=backend.kind)
+    return FrameSource(backend, info, start=start, stop=stop, step=step)

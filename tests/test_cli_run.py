@@ -1,0 +1,283 @@
+"""`bgsub run` end to end, with small test engines so the tests do not depend on real engines."""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import List, Optional
+
+import cv2
+import numpy as np
+import pytest
+
+from bgsub import engines
+from bgsub.cli import main
+from bgsub.engines import Engine, Param, register_engine
+from bgsub.sources import open_source
+
+W, H, N = 80, 60, 20
+
+
+class _FrameDiff(Engine):
+    """Foreground where the gray level changed by more than ``threshold`` since the last frame."""
+
+    calls = 0  # frames processed by any instance, to see whether processing started
+
+    def __init__(self, threshold: int) -> None:
+        self.threshold = threshold
+        self.previous: Optional[np.ndarray] = None
+
+    def apply(self, image, fgmask=None, learning_rate=-1.0):
+        _FrameDiff.calls += 1
+        gray = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY).astype(np.int16)
+        previous = gray if self.previous is None else self.previous
+        self.previous = gray
+        return np.where(np.abs(gray - previous) > self.threshold, 255, 0).astype(np.uint8)
+
+
+class _Interrupting(_FrameDiff):
+    """Acts as if the user pressed Ctrl-C while frame number ``at`` (0-based) was processed."""
+
+    def __init__(self, at: int) -> None:
+        super().__init__(30)
+        self.at, self.seen = at, 0
+
+    def apply(self, image, fgmask=None, learning_rate=-1.0):
+        if self.seen == self.at:
+            raise KeyboardInterrupt
+        self.seen += 1
+        return super().apply(image)
+
+
+class _Drawing(_FrameDiff):
+    """Has a debug picture (none for the first frame) and a status ("fallback" every 3rd frame)."""
+
+    def __init__(self) -> None:
+        super().__init__(30)
+        self.seen = 0
+        self.last_status = "ok"
+
+    def apply(self, image, fgmask=None, learning_rate=-1.0):
+        self.seen += 1
+        self.last_status = "fallback: test" if self.seen % 3 == 0 else "ok"
+        return super().apply(image)
+
+    def debug_image(self):
+        if self.seen < 2:
+            return None
+        return np.full((H // 2, W // 2, 3), 200, np.uint8)
+
+
+register_engine("_test_diff", "test: frame difference",
+                params={"threshold": Param(30, "gray level change")})(_FrameDiff)
+register_engine("_test_interrupt", "test: Ctrl-C at a frame",
+                params={"at": Param(5, "frame")})(_Interrupting)
+register_engine("_test_draw", "test: debug_image and last_status")(_Drawing)
+
+
+def _clip_frames(n: int = N) -> List[np.ndarray]:
+    rng = np.random.default_rng(0)
+    frames = []
+    for k in range(n):
+        frame = rng.integers(0, 40, (H, W, 3), dtype=np.uint8)
+        frame[20:35, 2 * k:2 * k + 15] = 230  # a bright box moving right
+        frames.append(frame)
+    return frames
+
+
+@pytest.fixture
+def clip(tmp_path) -> Path:
+    path = tmp_path / "clip.mkv"
+    writer = cv2.VideoWriter(str(path), cv2.CAP_FFMPEG, cv2.VideoWriter_fourcc(*"FFV1"), 25.0,
+                             (W, H), True)
+    for frame in _clip_frames():
+        writer.write(frame)
+    writer.release()
+    return path
+
+
+def _video_frames(path: Path) -> List[np.ndarray]:
+    with open_source(path) as source:
+        return [frame for _, frame in source]
+
+
+def _run(capsys, *args) -> tuple:
+    code = main(["run", *map(str, args)])
+    return code, capsys.readouterr().err
+
+
+def test_masks_video_matches_the_engine(tmp_path, clip, capsys):
+    code, err = _run(capsys, clip, "-o", tmp_path / "m.mkv", "--method", "_test_diff",
+                     "--param", "threshold=50")
+    assert code == 0
+    engine = _FrameDiff(50)
+    want = [engine.apply(frame) for frame in _clip_frames()]
+    got = _video_frames(tmp_path / "m.mkv")
+    assert len(got) == N
+    for g, w in zip(got, want):
+        np.testing.assert_array_equal(g[:, :, 0], w)
+    assert any(w.any() for w in want)  # the engine found the box: the check above means something
+    assert f"{N} frames" in err and "m.mkv" in err and len(err.strip().splitlines()) == 1
+
+
+def test_folder_input_gives_matching_png_names(tmp_path, capsys):
+    folder = tmp_path / "seq" / "input"
+    folder.mkdir(parents=True)
+    for k, frame in enumerate(_clip_frames(8)):
+        cv2.imwrite(str(folder / f"in{k + 1:06d}.png"), frame)
+    code, err = _run(capsys, tmp_path / "seq", "-o", tmp_path / "out", "-m", "_test_diff",
+                     "--start", "2", "--step", "2")
+    assert code == 0
+    assert sorted(os.listdir(tmp_path / "out")) == [f"bin00000{k}.png" for k in (3, 5, 7)]
+
+
+def test_fps_notice_for_image_folder_written_as_video(tmp_path, capsys):
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for k, frame in enumerate(_clip_frames(3)):
+        cv2.imwrite(str(folder / f"f{k}.png"), frame)
+    code, err = _run(capsys, folder, "-o", tmp_path / "m.mkv", "-m", "_test_diff")
+    assert code == 0 and "25 fps" in err
+
+
+def test_vis_video_is_side_by_side(tmp_path, clip, capsys):
+    code, _ = _run(capsys, clip, "-o", tmp_path / "m", "--vis", tmp_path / "vis.mp4",
+                   "-m", "_test_diff", "--stop", "6")
+    assert code == 0
+    frames = _video_frames(tmp_path / "vis.mp4")
+    assert len(frames) == 6 and frames[0].shape == (H, 2 * W, 3)
+
+
+def test_flow_vis_and_status_summary(tmp_path, clip, capsys):
+    code, err = _run(capsys, clip, "-o", tmp_path / "m.mkv", "--flow-vis", tmp_path / "f.mkv",
+                     "-m", "_test_draw", "--stop", "9")
+    assert code == 0
+    frames = _video_frames(tmp_path / "f.mkv")
+    assert len(frames) == 9  # the first frame had no picture: black, to stay in step
+    assert frames[0].mean() < 10 and frames[1].mean() > 150
+    assert "3 frames not ok" in err and "fallback: test" in err
+
+
+def test_flow_vis_needs_an_engine_that_draws(tmp_path, clip, capsys):
+    code, err = _run(capsys, clip, "-o", tmp_path / "m.mkv", "--flow-vis", tmp_path / "f.mp4",
+                     "-m", "_test_diff")
+    assert code == 2 and "debug_image" in err
+    assert not (tmp_path / "m.mkv").exists() and not (tmp_path / "f.mp4").exists()
+
+
+def test_existing_output_is_refused_before_processing(tmp_path, clip, capsys):
+    (tmp_path / "vis.mp4").write_bytes(b"old")
+    before = _FrameDiff.calls
+    code, err = _run(capsys, clip, "-o", tmp_path / "m.mkv", "--vis", tmp_path / "vis.mp4",
+                     "-m", "_test_diff")
+    assert code == 2 and "already exists" in err and len(err.strip().splitlines()) == 1
+    assert _FrameDiff.calls == before and not (tmp_path / "m.mkv").exists()
+    code, _ = _run(capsys, clip, "-o", tmp_path / "m.mkv", "--vis", tmp_path / "vis.mp4",
+                   "-m", "_test_diff", "--overwrite")
+    assert code == 0 and len(_video_frames(tmp_path / "vis.mp4")) == N
+
+
+def test_output_equal_to_input_is_refused(tmp_path, clip, capsys):
+    code, err = _run(capsys, clip, "-o", clip, "-m", "_test_diff", "--overwrite")
+    assert code == 2 and "input" in err
+    assert len(_video_frames(clip)) == N
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--method", "no-such-method"], "unknown method"),
+    (["-m", "_test_diff", "--param", "nope=1"], "no parameter"),
+    (["-m", "_test_diff", "--param", "threshold=high"], "takes a int"),
+    (["-m", "_test_diff", "--param", "threshold"], "key=value"),
+    (["-m", "_test_diff", "--step", "0"], "step"),
+])
+def test_bad_options_exit_2(tmp_path, clip, capsys, args, words):
+    code, err = _run(capsys, clip, "-o", tmp_path / "m.mkv", *args)
+    assert code == 2 and words in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "m.mkv").exists()
+
+
+def test_ctrl_c_keeps_valid_partial_outputs_and_exits_130(tmp_path, clip, capsys):
+    code, err = _run(capsys, clip, "-o", tmp_path / "m.mkv", "--vis", tmp_path / "v.mp4",
+                     "-m", "_test_interrupt", "--param", "at=7")
+    assert code == 130
+    assert len(_video_frames(tmp_path / "m.mkv")) == 7
+    assert len(_video_frames(tmp_path / "v.mp4")) == 7
+    assert "interrupted" in err and "valid" in err and "7 frames" in err
+    assert not list(tmp_path.glob(".*partial*"))
+
+
+def test_quiet_prints_nothing(tmp_path, clip, capsys):
+    code, err = _run(capsys, clip, "-o", tmp_path / "m.mkv", "-m", "_test_diff", "--quiet")
+    assert code == 0 and err == ""
+
+
+def test_help_teaches_with_examples(capsys):
+    with pytest.raises(SystemExit):
+        main(["run", "--help"])
+    out = capsys.readouterr().out
+    assert "examples:" in out and "bgsub run clip.mp4 -o masks.mkv" in out
+
+
+def _python_m_bgsub(*args) -> subprocess.CompletedProcess:
+    env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+    return subprocess.run([sys.executable, "-m", "bgsub", "run", *map(str, args)],
+                          capture_output=True, text=True, env=env, timeout=120)
+
+
+def test_subprocess_bad_input_is_one_line_exit_2(tmp_path):
+    result = _python_m_bgsub(tmp_path / "missing.mp4", "-o", tmp_path / "m.mkv")
+    assert result.returncode == 2
+    assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.stderr
+    assert "missing.mp4" in result.stderr
+
+
+@pytest.mark.skipif("mog2" not in [s.name for s in engines.available_engines()],
+                    reason="the mog2 engine (bgsub.baselines) is not available")
+def test_subprocess_run_with_mog2(tmp_path, clip):
+    result = _python_m_bgsub(clip, "-o", tmp_path / "masks", "--method", "mog2")
+    assert result.returncode == 0, result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.stderr
+    names = sorted(os.listdir(tmp_path / "masks"))
+    assert len(names) == N and names[0] == "bin000001.png"
+    last = cv2.imread(str(tmp_path / "masks" / names[-1]), cv2.IMREAD_UNCHANGED)
+    assert last.shape == (H, W) and set(np.unique(last)) <= {0, 255}
+
+
+_SLOW_RUN = """
+import sys, time
+import numpy as np
+from bgsub.cli import main
+from bgsub.engines import Engine, register_engine
+
+@register_engine("_test_slow", "test: 0.1 s per frame")
+class Slow(Engine):
+    def apply(self, image, fgmask=None, learning_rate=-1.0):
+        time.sleep(0.1)
+        return np.zeros(image.shape[:2], np.uint8)
+
+raise SystemExit(main(["run", *sys.argv[1:], "-m", "_test_slow"]))
+"""
+
+
+def test_real_sigint_leaves_valid_partial_output(tmp_path, clip):
+    out = tmp_path / "m.mkv"
+    env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+    child = subprocess.Popen([sys.executable, "-c", _SLOW_RUN, str(clip), "-o", str(out)],
+                             stderr=subprocess.PIPE, text=True, env=env)
+    partial = tmp_path / ".m.partial.mkv"
+    deadline = time.monotonic() + 60
+    while not partial.exists() and child.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    time.sleep(0.3)  # a few frames in; the whole run would take N * 0.1 s = 2 s
+    child.send_signal(signal.SIGINT)
+    _, err = child.communicate(timeout=60)
+    assert child.returncode == 130, err
+    assert "Traceback" not in err and "interrupted" in err
+    held = int(re.search(r"holds (\d+) frame", err).group(1))
+    assert 0 < held < N and len(_video_frames(out)) == held
+    assert not partial.exists()

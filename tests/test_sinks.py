@@ -1,0 +1,313 @@
+"""Sinks: exact mask videos, PNG folders, temp-then-rename, partial outputs, refusals."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import List
+
+import cv2
+import numpy as np
+import pytest
+
+from bgsub import sinks
+from bgsub.errors import OutputError
+from bgsub.sinks import VideoSink, VisSink, open_mask_sink, process, render_overlay
+
+W, H = 48, 32
+
+
+def _masks(n: int, seed: int = 0) -> List[np.ndarray]:
+    rng = np.random.default_rng(seed)
+    return [np.where(rng.random((H, W)) < 0.3, 255, 0).astype(np.uint8) for _ in range(n)]
+
+
+def _read_video(path: Path) -> List[np.ndarray]:
+    capture = cv2.VideoCapture(str(path), cv2.CAP_FFMPEG)
+    frames = []
+    while True:
+        ok, frame = capture.read()
+        if not ok:
+            break
+        frames.append(frame)
+    capture.release()
+    return frames
+
+
+# ------------------------------------------------------------------------------- mask videos
+
+
+@pytest.mark.parametrize("ext", [".mkv", ".avi"])
+def test_lossless_mask_video_round_trip_is_exact(tmp_path, ext):
+    masks = _masks(5)
+    path = tmp_path / f"masks{ext}"
+    with open_mask_sink(path, width=W, height=H, fps=20) as sink:
+        for k, mask in enumerate(masks):
+            sink.write(mask, k)
+    assert sink.frames_written == 5
+    frames = _read_video(path)
+    assert len(frames) == 5
+    for got, want in zip(frames, masks):
+        for c in range(3):
+            np.testing.assert_array_equal(got[:, :, c], want)
+
+
+def test_mp4_mask_video_warns_it_is_lossy(tmp_path, capsys):
+    with open_mask_sink(tmp_path / "m.mp4", width=W, height=H, fps=20) as sink:
+        sink.write(_masks(1)[0])
+    err = capsys.readouterr().err
+    assert "lossy" in err and len(err.strip().splitlines()) == 1
+    assert len(_read_video(tmp_path / "m.mp4")) == 1
+
+
+def test_video_is_written_under_a_temporary_name_then_renamed(tmp_path):
+    path = tmp_path / "masks.mkv"
+    with open_mask_sink(path, width=W, height=H, fps=20) as sink:
+        sink.write(_masks(1)[0])
+        assert not path.exists()
+        assert (tmp_path / ".masks.partial.mkv").exists()
+    assert path.exists() and not (tmp_path / ".masks.partial.mkv").exists()
+
+
+def test_interrupt_leaves_a_readable_partial_video(tmp_path, capsys):
+    path = tmp_path / "masks.mkv"
+    masks = _masks(3)
+    with pytest.raises(KeyboardInterrupt):
+        with open_mask_sink(path, width=W, height=H, fps=20) as sink:
+            for mask in masks:
+                sink.write(mask)
+            raise KeyboardInterrupt
+    frames = _read_video(path)
+    assert len(frames) == 3
+    np.testing.assert_array_equal(frames[2][:, :, 0], masks[2])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "partial" in err[0] and "3 frames" in err[0]
+    assert "interrupted" in err[0]
+    assert not (tmp_path / ".masks.partial.mkv").exists()
+
+
+def test_error_inside_with_also_keeps_the_partial_video(tmp_path, capsys):
+    path = tmp_path / "masks.avi"
+    with pytest.raises(RuntimeError):
+        with open_mask_sink(path, width=W, height=H, fps=20) as sink:
+            sink.write(_masks(1)[0])
+            raise RuntimeError("engine failed")
+    assert len(_read_video(path)) == 1
+    assert "1 frame" in capsys.readouterr().err
+
+
+def test_interrupt_before_any_frame_leaves_nothing(tmp_path, capsys):
+    with pytest.raises(KeyboardInterrupt):
+        with open_mask_sink(tmp_path / "m.mkv", width=W, height=H, fps=20):
+            raise KeyboardInterrupt
+    assert os.listdir(tmp_path) == []
+    assert "not written" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------------------- PNG folders
+
+
+def test_png_names_follow_the_input_index(tmp_path):
+    masks = _masks(2)
+    with open_mask_sink(tmp_path / "out", width=W, height=H, fps=20) as sink:
+        sink.write(masks[0], 122)
+        sink.write(masks[1], 124)
+    assert sorted(os.listdir(tmp_path / "out")) == ["bin000123.png", "bin000125.png"]
+    got = cv2.imread(str(tmp_path / "out" / "bin000125.png"), cv2.IMREAD_UNCHANGED)
+    np.testing.assert_array_equal(got, masks[1])
+
+
+def test_png_without_index_are_numbered_from_one(tmp_path):
+    with open_mask_sink(tmp_path / "a" / "b", width=W, height=H, fps=20) as sink:
+        for mask in _masks(3):
+            sink.write(mask)
+    assert sorted(os.listdir(tmp_path / "a" / "b")) == [f"bin00000{k}.png" for k in (1, 2, 3)]
+
+
+def test_existing_empty_folder_is_accepted(tmp_path):
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "keep.txt").write_text("other results")
+    with open_mask_sink(tmp_path / "out", width=W, height=H, fps=20) as sink:
+        sink.write(_masks(1)[0])
+    assert sorted(os.listdir(tmp_path / "out")) == ["bin000001.png", "keep.txt"]
+
+
+def test_folder_with_masks_is_refused_then_overwritten(tmp_path):
+    folder = tmp_path / "out"
+    with open_mask_sink(folder, width=W, height=H, fps=20) as sink:
+        for mask in _masks(3):
+            sink.write(mask)
+    with pytest.raises(OutputError, match="already holds masks"):
+        open_mask_sink(folder, width=W, height=H, fps=20)
+    with open_mask_sink(folder, width=W, height=H, fps=20, overwrite=True) as sink:
+        sink.write(_masks(1)[0])
+    assert os.listdir(folder) == ["bin000001.png"]  # no stale masks from the first run
+
+
+def test_interrupted_folder_holds_only_complete_masks(tmp_path, capsys):
+    with pytest.raises(KeyboardInterrupt):
+        with open_mask_sink(tmp_path / "out", width=W, height=H, fps=20) as sink:
+            for k, mask in enumerate(_masks(2)):
+                sink.write(mask, k)
+            raise KeyboardInterrupt
+    assert sorted(os.listdir(tmp_path / "out")) == ["bin000001.png", "bin000002.png"]
+    assert "2 masks" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------------------- refusals
+
+
+def test_existing_video_is_refused_and_overwrite_replaces_it(tmp_path):
+    path = tmp_path / "m.mkv"
+    path.write_bytes(b"old")
+    with pytest.raises(OutputError, match="already exists"):
+        open_mask_sink(path, width=W, height=H, fps=20)
+    assert path.read_bytes() == b"old"
+    with open_mask_sink(path, width=W, height=H, fps=20, overwrite=True) as sink:
+        sink.write(_masks(1)[0])
+    assert len(_read_video(path)) == 1
+
+
+def test_missing_parent_folder_for_a_video(tmp_path):
+    with pytest.raises(OutputError, match="does not exist"):
+        open_mask_sink(tmp_path / "no" / "m.mkv", width=W, height=H, fps=20)
+
+
+@pytest.mark.skipif(hasattr(os, "geteuid") and os.geteuid() == 0,
+                    reason="root can write in read-only folders")
+def test_read_only_folder(tmp_path):
+    folder = tmp_path / "ro"
+    folder.mkdir()
+    folder.chmod(0o500)
+    try:
+        with pytest.raises(OutputError, match="permission"):
+            open_mask_sink(folder / "m.mkv", width=W, height=H, fps=20)
+    finally:
+        folder.chmod(0o700)
+
+
+def test_unwritable_folder_is_refused_before_writing(tmp_path, monkeypatch):
+    # The same check as test_read_only_folder, reachable when the tests run as root.
+    monkeypatch.setattr(sinks.os, "access", lambda path, mode: False)
+    with pytest.raises(OutputError, match="permission"):
+        open_mask_sink(tmp_path / "out", width=W, height=H, fps=20)
+    assert os.listdir(tmp_path) == []
+
+
+def test_image_file_name_is_refused_as_mask_output(tmp_path):
+    with pytest.raises(OutputError, match="folder"):
+        open_mask_sink(tmp_path / "mask.png", width=W, height=H, fps=20)
+
+
+def test_failing_video_writer_is_an_output_error(tmp_path, monkeypatch):
+    class Closed:
+        def __init__(self, *args):
+            pass
+
+        def isOpened(self):  # noqa: N802 (OpenCV's name)
+            return False
+
+        def release(self):
+            pass
+
+    monkeypatch.setattr(sinks.cv2, "VideoWriter", Closed)
+    with pytest.raises(OutputError, match="video writer"):
+        open_mask_sink(tmp_path / "m.mkv", width=W, height=H, fps=20)
+    assert os.listdir(tmp_path) == []
+
+
+@pytest.mark.parametrize("bad", [np.zeros((H, W), np.float32), np.zeros((H, W, 3), np.uint8),
+                                 np.zeros((H + 1, W), np.uint8)])
+def test_mask_shape_and_dtype_are_checked(tmp_path, bad):
+    with open_mask_sink(tmp_path / "out", width=W, height=H, fps=20) as sink:
+        with pytest.raises(ValueError):
+            sink.write(bad)
+
+
+# ------------------------------------------------------------------------------- pictures
+
+
+@pytest.mark.parametrize("ext", [".mp4", ".avi", ".mkv"])
+def test_video_sink_writes_colour_pictures(tmp_path, ext):
+    picture = np.zeros((H, W, 3), np.uint8)
+    picture[:, :, 2] = 200  # red
+    with VideoSink(tmp_path / f"p{ext}", fps=10) as sink:
+        for _ in range(4):
+            sink.write(picture)
+    frames = _read_video(tmp_path / f"p{ext}")
+    assert len(frames) == 4 and frames[0].shape == (H, W, 3)
+    assert abs(int(frames[0][:, :, 2].mean()) - 200) < 10 and frames[0][:, :, 0].mean() < 10
+
+
+def test_video_sink_blanks_keep_the_video_in_step(tmp_path):
+    picture = np.full((H, W, 3), 180, np.uint8)
+    with VideoSink(tmp_path / "p.mkv", fps=10) as sink:
+        sink.write_blank()  # before the size is known
+        sink.write(picture)
+        sink.write_blank()
+    frames = _read_video(tmp_path / "p.mkv")
+    assert [int(f.mean()) < 20 for f in frames] == [True, False, True]
+
+
+def test_video_sink_refuses_a_picture_of_another_size(tmp_path):
+    with VideoSink(tmp_path / "p.mp4", fps=10) as sink:
+        sink.write(np.zeros((H, W, 3), np.uint8))
+        with pytest.raises(ValueError):
+            sink.write(np.zeros((H, W + 2, 3), np.uint8))
+
+
+def test_render_overlay_tints_the_mask_and_puts_it_beside(tmp_path):
+    frame = np.full((H, W, 3), 100, np.uint8)
+    mask = np.zeros((H, W), np.uint8)
+    mask[10:20, 10:30] = 255
+    out = render_overlay(frame, mask)
+    assert out.shape == (H, 2 * W, 3)
+    np.testing.assert_array_equal(out[:, W:, 0], mask)
+    np.testing.assert_array_equal(out[0, 0], frame[0, 0])  # background untouched
+    inside = out[15, 20]
+    assert inside[2] > 150 and inside[0] < 100  # foreground tinted red
+
+
+def test_vis_sink_writes_side_by_side_video(tmp_path):
+    with VisSink(tmp_path / "vis.mp4", width=W, height=H, fps=10) as vis:
+        for mask in _masks(3):
+            vis.write(np.zeros((H, W, 3), np.uint8), mask)
+    frames = _read_video(tmp_path / "vis.mp4")
+    assert len(frames) == 3 and frames[0].shape == (H, 2 * W, 3)
+
+
+# ------------------------------------------------------------------------------- process()
+
+
+class _Threshold:
+    """Minimal engine: foreground where the gray value is above 128; reports a status."""
+
+    def __init__(self):
+        self.n = 0
+        self.last_status = "ok"
+
+    def apply(self, image, fgmask=None, learning_rate=-1.0):
+        self.n += 1
+        self.last_status = "ok" if self.n % 2 else "fallback: test"
+        gray = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
+        return np.where(gray > 128, 255, 0).astype(np.uint8)
+
+
+def test_process_writes_every_mask_and_counts_statuses(tmp_path):
+    rng = np.random.default_rng(1)
+    frames = [(k + 10, rng.integers(0, 256, (H, W, 3), dtype=np.uint8)) for k in range(5)]
+    seen = []
+    with open_mask_sink(tmp_path / "out", width=W, height=H, fps=10) as sink:
+        stats = process(frames, _Threshold(), sink, on_frame=lambda i, m: seen.append(i))
+    assert stats.frames == 5 and seen == [10, 11, 12, 13, 14]
+    assert stats.has_status and stats.not_ok == 2 and stats.statuses["fallback: test"] == 2
+    got = cv2.imread(str(tmp_path / "out" / "bin000013.png"), cv2.IMREAD_UNCHANGED)
+    gray = cv2.cvtColor(frames[2][1], cv2.COLOR_BGR2GRAY)
+    np.testing.assert_array_equal(got, np.where(gray > 128, 255, 0))
+
+
+def test_process_refuses_flow_vis_without_debug_image(tmp_path):
+    with open_mask_sink(tmp_path / "out", width=W, height=H, fps=10) as sink, \
+            VideoSink(tmp_path / "f.mp4", fps=10) as flow:
+        with pytest.raises(TypeError):
+            process([], _Threshold(), sink, flow_vis=flow)

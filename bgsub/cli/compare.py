@@ -1,0 +1,151 @@
+"""``bgsub compare``: several engines on the same frames, timed and scored side by side."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any, Dict, List
+
+from bgsub.cli.common import add_output_options, add_source_options, note, source_kwargs
+from bgsub.errors import InputError
+
+_DESCRIPTION = """\
+Run several methods on the same frames (each frame is decoded once and fed to every method) and
+compare them: processing speed (frames per second inside each engine, decoding excluded) and,
+with ground truth, the seven CDnet 2014 metrics (Recall, Specificity, FPR, FNR, PWC, Precision,
+F-measure), scored exactly as `bgsub eval` scores the masks written here.
+
+INPUT is a CDnet sequence folder (input/ + groundtruth/; its ground truth is used), a dataset
+root holding several such sequences (root/NAME/ or root/CATEGORY/NAME/: one row per sequence and
+method, then per-family means and the mean over families; the family of root/NAME is the part of
+NAME before its last '_', e.g. BMS26_cars1 -> BMS26), or any video / image folder / glob (with
+--gt for scores).
+
+REPORT_DIR receives report.txt (also printed), report.csv and report.json; the masks of each
+method (METHOD/binNNNNNN.png, or METHOD.mkv with --masks mkv); and side_by_side.mp4 (input and
+one labelled mask per method). For a dataset root, masks and videos go to REPORT_DIR/SEQUENCE/.
+
+Only frames inside the temporal ROI are scored; labels 85 and 170 are ignored. ROI.bmp is
+used for a single sequence and ignored for dataset roots (the real CDnet traffic ROI.bmp has the
+wrong size); --roi-bmp / --no-roi-bmp override that."""
+
+_EPILOG = """\
+examples:
+  bgsub compare data/real/BMS26_cars1 --methods grbm,compensated,mog2,knn -o cmp/ --skip-first
+  bgsub compare data/real -o cmp_all/ --skip-first --no-video       every sequence, family means
+  bgsub compare data/real/CDnet2014_cameraJitter_traffic -o cmp_traffic/ --methods mog2,grbm \
+      --skip-first --no-roi-bmp                 (traffic's ROI.bmp has the wrong size)
+  bgsub compare clip.mp4 --gt clip_gt/ -o cmp/ --param mog2.history=200 --max-frames 100
+  bgsub compare scenes/pan_s0 -o cmp/ --width 160 --masks none     quick look, no masks written
+
+exit status: 0 done, 2 bad input or output (unknown method, missing input, REPORT_DIR exists),
+1 failure while processing
+"""
+
+
+def register(subparsers: Any) -> None:
+    parser = subparsers.add_parser(
+        "compare",
+        help="run several methods on the same input: speed, CDnet metrics, side-by-side video",
+        description=_DESCRIPTION,
+        epilog=_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("input", metavar="INPUT",
+                        help="CDnet sequence folder, dataset root, video, image folder or glob")
+    parser.add_argument("-o", "--output", required=True, metavar="REPORT_DIR",
+                        help="folder for the report, masks and videos (must not exist or be "
+                             "empty, unless --overwrite)")
+    parser.add_argument("-m", "--methods", default=None, metavar="M1,M2,...",
+                        help="comma-separated engines (default: all registered; see "
+                             "`bgsub methods`)")
+    parser.add_argument("-p", "--param", action="append", default=[],
+                        metavar="METHOD.KEY=VALUE",
+                        help="engine parameter, e.g. mog2.history=200 (repeatable)")
+    parser.add_argument("--gt", default=None, metavar="SEQUENCE",
+                        help="CDnet sequence folder with the ground truth of INPUT (default: "
+                             "INPUT itself when it is one)")
+    scoring = parser.add_argument_group("what is scored")
+    scoring.add_argument("--skip-first", action="store_true",
+                         help="do not score the first processed frame (the engines have seen "
+                              "nothing before it; the project's benchmark rule); frames later "
+                              "in the input, e.g. the start of a temporal ROI, are scored")
+    roi = scoring.add_mutually_exclusive_group()
+    roi.add_argument("--roi-bmp", dest="roi_bmp", action="store_const", const=True,
+                     default=None, help="use ROI.bmp even for a dataset root")
+    roi.add_argument("--no-roi-bmp", dest="roi_bmp", action="store_const", const=False,
+                     help="ignore ROI.bmp even for a single sequence")
+    outputs = parser.add_argument_group("outputs")
+    outputs.add_argument("--masks", choices=("png", "mkv", "none"), default="png",
+                         help="masks per method: binNNNNNN.png folder, lossless .mkv video, or "
+                              "none (default: png)")
+    outputs.add_argument("--no-video", action="store_true",
+                         help="do not write side_by_side.mp4 (faster on datasets)")
+    outputs.add_argument("--tile-height", type=int, default=180, metavar="PX",
+                         help="height of each tile of side_by_side.mp4; frames are never "
+                              "enlarged and the file size grows with it (default: 180)")
+    add_output_options(parser)
+    add_source_options(parser)
+    parser.add_argument(
+        "--max-frames", type=int, default=None, metavar="N",
+        help="process at most N frames per sequence (quick runs; note a temporal ROI may start "
+             "later, e.g. frame 900 for CDnet traffic)")
+    parser.set_defaults(handler=run)
+
+
+def parse_methods(text: str) -> List[str]:
+    """``"grbm, mog2"`` -> ``["grbm", "mog2"]``; empty lists and duplicates are refused."""
+    names = [name.strip() for name in text.split(",") if name.strip()]
+    if not names:
+        raise InputError("--methods is empty")
+    for k, name in enumerate(names):
+        if name in names[:k]:
+            raise InputError(f"--methods names {name!r} twice")
+    return names
+
+
+def parse_method_params(pairs: List[str], methods: List[str]) -> Dict[str, Dict[str, Any]]:
+    """``["mog2.history=200"]`` -> ``{"mog2": {"history": 200}}``, typed by the engine's params.
+
+    Raises :class:`InputError` for a malformed pair, a method not in ``methods``, or a
+    parameter the engine does not have.
+    """
+    from bgsub.engines import parse_params
+
+    grouped: Dict[str, List[str]] = {}
+    for pair in pairs:
+        method, dot, rest = pair.partition(".")
+        method = method.strip()
+        if not dot or "=" not in rest or "=" in method or not method:
+            raise InputError(f"--param takes METHOD.KEY=VALUE, e.g. mog2.history=200, "
+                             f"not {pair!r}")
+        if method not in methods:
+            raise InputError(f"--param {pair!r}: method {method!r} is not among the methods "
+                             f"({', '.join(methods)})")
+        grouped.setdefault(method, []).append(rest)
+    return {method: parse_params(method, rest) for method, rest in grouped.items()}
+
+
+def run(args: argparse.Namespace) -> int:
+    from bgsub.compare import compare_methods
+    from bgsub.engines import available_engines, get_engine_spec
+
+    if args.methods:
+        methods = parse_methods(args.methods)
+        for name in methods:
+            get_engine_spec(name)  # unknown names: one line listing the available ones
+    else:
+        methods = [spec.name for spec in available_engines()]
+    params = parse_method_params(args.param, methods)
+    if args.max_frames is not None and args.max_frames < 1:
+        raise InputError(f"--max-frames takes a number >= 1, not {args.max_frames}")
+    report = compare_methods(
+        args.input, methods=methods, report_dir=args.output, gt=args.gt, params=params,
+        skip_first=args.skip_first,
+        ignore_roi_bmp=None if args.roi_bmp is None else not args.roi_bmp,
+        max_frames=args.max_frames, masks=args.masks, video=not args.no_video,
+        tile_height=args.tile_height,
+        overwrite=args.overwrite, quiet=args.quiet, **source_kwargs(args),
+    )
+    print(report.to_text())
+    note(f"report written to {args.output}/report.txt (.csv, .json)", quiet=args.quiet)
+    return 0

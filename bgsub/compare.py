@@ -1,0 +1,788 @@
+"""Run several engines on the same frames and compare their speed and CDnet 2014 scores.
+
+Every frame is decoded once and fed to every engine in turn (streaming: memory does not grow
+with the length of the input). Only ``engine.apply`` is timed, so each method's frames per
+second exclude decoding, scoring and writing. With ground truth, each mask is scored as it is
+produced, with :mod:`bgsub.evaluation`'s rules (temporal ROI, labels 85/170 ignored, optional
+``ROI.bmp``), so the figures equal ``bgsub eval`` run on the masks written here.
+
+The input is one of
+
+* a CDnet sequence folder (``input/`` + ``groundtruth/``): its own ground truth is used;
+* a dataset root holding several such sequences (``root/NAME/`` or ``root/CATEGORY/NAME/``):
+  one row per sequence and method, then per-family means and the mean over families, averaged
+  the CDnet way (:class:`bgsub.evaluation.DatasetResult`); the family of ``root/NAME`` is the
+  part of ``NAME`` before its last ``_`` (``BMS26_cars1`` -> ``BMS26``), of
+  ``root/CATEGORY/NAME`` it is ``CATEGORY``;
+* anything :func:`bgsub.sources.open_source` reads (video, image folder, glob), with optional
+  ground truth given separately.
+
+Outputs in ``report_dir`` (per sequence in ``report_dir/<sequence>/`` for a dataset root):
+``<method>/binNNNNNN.png`` masks (or ``<method>.mkv``), ``side_by_side.mp4`` (input | one mask
+per method, labelled), and ``report.txt`` / ``report.csv`` / ``report.json`` at the top.
+
+Example::
+
+    from bgsub.compare import compare_methods
+    report = compare_methods("data/real/BMS26_cars1", methods=["grbm", "mog2"],
+                             report_dir="cmp", skip_first=True)
+    for row in report.rows:
+        print(row.method, row.fps, row.metrics.f_measure)
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import io
+import json
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
+
+import cv2
+import numpy as np
+
+from bgsub.cli.common import progress
+from bgsub.engines import available_engines, create_engine, get_engine_spec
+from bgsub.errors import InputError, OutputError, ProcessingError
+from bgsub.evaluation import (
+    METRIC_NAMES,
+    METRIC_TITLES,
+    Counts,
+    DatasetResult,
+    GroundTruth,
+    Metrics,
+    SequenceResult,
+    category_of,
+    count_frame,
+    find_sequences,
+    is_sequence,
+    open_ground_truth,
+)
+from bgsub.sinks import VideoSink, open_mask_sink
+from bgsub.sources import VideoInfo, open_source
+
+PathLike = Union[str, "Path"]
+
+#: What the fps column measures; printed with every report.
+TIMING_NOTE = (
+    "fps = frames / seconds spent inside engine.apply() (decoding, scoring and writing "
+    "excluded); each frame is decoded once and fed to every method."
+)
+
+#: Mask outputs: a folder of CDnet binNNNNNN.png, a lossless FFV1 video, or nothing.
+MASK_FORMATS = ("png", "mkv", "none")
+
+# Side-by-side tiles are shrunk (never enlarged) to at most this height, and the whole picture
+# to at most this width. OpenCV's mp4v writer has no bitrate control (about 0.26 bytes per pixel
+# per frame measured on mask tiles), so the file size follows the picture size: 180 px tiles keep
+# input + 4 methods on 320x240 frames near 55 KiB per frame.
+TILE_HEIGHT = 180
+_VIDEO_MAX_WIDTH = 1600
+_TILES_PER_ROW = 5
+
+
+# --------------------------------------------------------------------------------------------
+# Results
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ComparisonRow:
+    """One method on one sequence, or a mean over a family or over all families.
+
+    Attributes
+    ----------
+    level : str
+        ``"sequence"``, ``"family"`` (mean over the family's sequences) or ``"overall"`` (mean
+        over the families).
+    name : str
+        Sequence name, family name, or ``"overall"``.
+    family : str
+        The sequence's family ("" for the overall row or without ground truth).
+    method : str
+        Engine name.
+    frames : int
+        Frames processed (summed for means).
+    seconds : float
+        Time spent inside ``engine.apply`` for those frames.
+    eval_frames : int
+        Frames scored against ground truth (0 without ground truth).
+    counts : Counts or None
+        TP/FP/FN/TN summed over the scored frames (and over sequences for means).
+    metrics : Metrics or None
+        The seven CDnet metrics (``nan`` where undefined; means skip undefined values);
+        ``None`` without ground truth.
+    not_ok : int
+        Frames whose ``engine.last_status`` was not ``"ok"`` (engines that report trouble).
+    notes : tuple of str
+    """
+
+    level: str
+    name: str
+    family: str
+    method: str
+    frames: int
+    seconds: float
+    eval_frames: int = 0
+    counts: Optional[Counts] = None
+    metrics: Optional[Metrics] = None
+    not_ok: int = 0
+    notes: Tuple[str, ...] = ()
+
+    @property
+    def fps(self) -> float:
+        """Frames per second of ``engine.apply`` (``nan`` if nothing was timed)."""
+        return self.frames / self.seconds if self.seconds > 0 else math.nan
+
+    def to_dict(self) -> Dict[str, Any]:
+        """JSON-ready view; undefined metrics are ``None``."""
+        return {
+            "level": self.level,
+            "name": self.name,
+            "family": self.family,
+            "method": self.method,
+            "frames": self.frames,
+            "seconds": self.seconds,
+            "fps": None if math.isnan(self.fps) else self.fps,
+            "eval_frames": self.eval_frames,
+            "counts": self.counts.as_dict() if self.counts is not None else None,
+            "metrics": self.metrics.as_dict() if self.metrics is not None else None,
+            "not_ok": self.not_ok,
+            "notes": list(self.notes),
+        }
+
+
+@dataclass
+class ComparisonReport:
+    """Everything :func:`compare_methods` measured.
+
+    Attributes
+    ----------
+    input : str
+        The input as given.
+    methods : list of str
+    rows : list of ComparisonRow
+        One per sequence and method (level ``"sequence"``), sequences in order.
+    families : list of ComparisonRow
+        Dataset roots with ground truth: one per family and method (mean of its sequences).
+    overall : list of ComparisonRow
+        Dataset roots with ground truth: one per method (mean of the family means).
+    settings : dict
+        The options that shaped the figures (frame range, skip_first, ROI.bmp use, ...).
+    report_dir : str or None
+        Where the outputs went.
+    """
+
+    input: str
+    methods: List[str]
+    rows: List[ComparisonRow] = field(default_factory=list)
+    families: List[ComparisonRow] = field(default_factory=list)
+    overall: List[ComparisonRow] = field(default_factory=list)
+    settings: Dict[str, Any] = field(default_factory=dict)
+    report_dir: Optional[str] = None
+
+    @property
+    def has_metrics(self) -> bool:
+        return any(r.metrics is not None for r in self.rows)
+
+    def all_rows(self) -> List[ComparisonRow]:
+        """Sequence rows, then family means, then overall means."""
+        return [*self.rows, *self.families, *self.overall]
+
+    def to_dict(self) -> Dict[str, Any]:
+        return {
+            "input": self.input,
+            "methods": list(self.methods),
+            "note": TIMING_NOTE,
+            "settings": dict(self.settings),
+            "rows": [r.to_dict() for r in self.rows],
+            "families": [r.to_dict() for r in self.families],
+            "overall": [r.to_dict() for r in self.overall],
+        }
+
+    def to_csv(self) -> str:
+        """One CSV row per sequence/family/overall and method; undefined values are empty."""
+        columns = ["level", "name", "family", "method", "frames", "seconds", "fps",
+                   "eval_frames", "tp", "fp", "fn", "tn", *METRIC_NAMES, "not_ok"]
+        buffer = io.StringIO()
+        writer = csv.DictWriter(buffer, fieldnames=columns, lineterminator="\n")
+        writer.writeheader()
+        for row in self.all_rows():
+            record: Dict[str, Any] = {
+                "level": row.level, "name": row.name, "family": row.family,
+                "method": row.method, "frames": row.frames, "seconds": f"{row.seconds:.6f}",
+                "fps": "" if math.isnan(row.fps) else f"{row.fps:.3f}",
+                "eval_frames": row.eval_frames, "not_ok": row.not_ok,
+            }
+            if row.counts is not None:
+                record.update(row.counts.as_dict())
+            if row.metrics is not None:
+                record.update({k: ("" if v is None else v)
+                               for k, v in row.metrics.as_dict().items()})
+            writer.writerow(record)
+        return buffer.getvalue()
+
+    def to_text(self) -> str:
+        """The comparison as a fixed-width table with the settings that shaped it."""
+        lines = [f"bgsub compare: {self.input}", f"methods: {', '.join(self.methods)}"]
+        settings = ", ".join(f"{k}={v}" for k, v in self.settings.items())
+        if settings:
+            lines.append(f"settings: {settings}")
+        lines += [TIMING_NOTE, ""]
+        with_metrics = self.has_metrics
+        name_width = max([8, *(len(r.name) + 2 for r in self.all_rows())])
+        method_width = max([6, *(len(m) for m in self.methods)])
+        header = (f"{'sequence':<{name_width}} {'method':<{method_width}} {'frames':>6} "
+                  f"{'fps':>8}")
+        if with_metrics:
+            header += f" {'scored':>6} " + " ".join(f"{t:>11}" for t in METRIC_TITLES)
+        lines += [header, "-" * len(header)]
+
+        def emit(row: ComparisonRow, label: str) -> None:
+            fps = "n/a" if math.isnan(row.fps) else f"{row.fps:.1f}"
+            line = f"{label:<{name_width}} {row.method:<{method_width}} {row.frames:>6} {fps:>8}"
+            if with_metrics:
+                line += f" {row.eval_frames:>6} " + _metric_cells(row.metrics)
+            lines.append(line)
+
+        for row in self.rows:
+            emit(row, row.name)
+        if self.families:
+            lines.append("families (mean of their sequences; fps = all frames / all seconds):")
+            for row in self.families:
+                emit(row, f"[{row.name}]")
+        if self.overall:
+            lines.append("overall (mean of the families):")
+            for row in self.overall:
+                emit(row, row.name)
+        notes = [(r.name, r.method, n) for r in self.rows for n in r.notes]
+        trouble = [r for r in self.rows if r.not_ok]
+        if notes or trouble:
+            lines.append("")
+        for r in trouble:
+            lines.append(f"{r.name} / {r.method}: {r.not_ok} of {r.frames} frames reported a "
+                         "non-ok status (engine fallback)")
+        shown = set()
+        for name, method, note in notes:
+            if (name, note) not in shown:  # ground-truth notes are the same for every method
+                shown.add((name, note))
+                lines.append(f"{name}: {note}")
+        return "\n".join(lines)
+
+    def write(self, folder: PathLike) -> None:
+        """Write ``report.txt``, ``report.csv`` and ``report.json`` into ``folder``."""
+        folder = Path(folder)
+        outputs = {"report.txt": self.to_text() + "\n", "report.csv": self.to_csv(),
+                   "report.json": json.dumps(self.to_dict(), indent=2) + "\n"}
+        for name, text in outputs.items():
+            try:
+                (folder / name).write_text(text)
+            except OSError as err:
+                raise OutputError(f"cannot write {folder / name}: {err.strerror}") from None
+
+
+def _metric_cells(metrics: Optional[Metrics]) -> str:
+    if metrics is None:
+        return " ".join(f"{'-':>11}" for _ in METRIC_NAMES)
+    cells = []
+    for name in METRIC_NAMES:
+        value = getattr(metrics, name)
+        text = "n/a" if math.isnan(value) else (f"{value:.3f}" if name == "pwc" else
+                                                 f"{value:.4f}")
+        cells.append(f"{text:>11}")
+    return " ".join(cells)
+
+
+# --------------------------------------------------------------------------------------------
+# The side-by-side video
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class TileLayout:
+    """Where each tile of the side-by-side picture goes.
+
+    ``labels[0]`` is the input, then one label per method; tiles fill rows of at most
+    :data:`_TILES_PER_ROW`, each ``tile_width x tile_height`` (even numbers, so every codec
+    takes the picture).
+    """
+
+    labels: Tuple[str, ...]
+    tile_width: int
+    tile_height: int
+    columns: int
+    rows: int
+
+    @property
+    def width(self) -> int:
+        return self.columns * self.tile_width
+
+    @property
+    def height(self) -> int:
+        return self.rows * self.tile_height
+
+    @classmethod
+    def for_frames(cls, width: int, height: int, labels: Sequence[str], *,
+                   tile_height: int = TILE_HEIGHT) -> "TileLayout":
+        """Layout for frames of ``width x height``, one tile per label, tiles at most
+        ``tile_height`` pixels high (frames are never enlarged)."""
+        n = len(labels)
+        rows = math.ceil(n / _TILES_PER_ROW)
+        columns = math.ceil(n / rows)
+        max_width = max(_VIDEO_MAX_WIDTH, columns * tile_height * width / height)
+        scale = min(1.0, tile_height / height, max_width / (columns * width))
+        tile_w = max(2, int(width * scale) // 2 * 2)
+        tile_h = max(2, int(height * scale) // 2 * 2)
+        return cls(tuple(labels), tile_w, tile_h, columns, rows)
+
+    def compose(self, frame: np.ndarray, masks: Sequence[np.ndarray]) -> np.ndarray:
+        """The picture: ``frame`` then ``masks`` as labelled tiles.
+
+        Parameters
+        ----------
+        frame : (H, W, 3) uint8 BGR
+        masks : sequence of (h, w) uint8 0/255, one per method (any size; resized to the tile)
+
+        Returns
+        -------
+        (height, width, 3) uint8 BGR picture.
+        """
+        canvas = np.zeros((self.height, self.width, 3), np.uint8)
+        size = (self.tile_width, self.tile_height)
+        for k, (label, image) in enumerate(zip(self.labels, [frame, *masks])):
+            shrink = image.shape[1] > self.tile_width
+            tile = cv2.resize(image, size, interpolation=cv2.INTER_AREA if shrink
+                              else cv2.INTER_NEAREST)
+            if tile.ndim == 2:
+                tile = cv2.cvtColor(tile, cv2.COLOR_GRAY2BGR)
+            _draw_label(tile, label)
+            # A thin grey frame keeps neighbouring white masks apart.
+            cv2.rectangle(tile, (0, 0), (tile.shape[1] - 1, tile.shape[0] - 1), (96, 96, 96), 1)
+            r, c = divmod(k, self.columns)
+            y, x = r * self.tile_height, c * self.tile_width
+            canvas[y:y + self.tile_height, x:x + self.tile_width] = tile
+        return canvas
+
+
+def _draw_label(tile: np.ndarray, text: str) -> None:
+    """Write ``text`` in the tile's top-left corner on a dark box (in place)."""
+    font = cv2.FONT_HERSHEY_SIMPLEX
+    scale = max(0.35, min(0.7, tile.shape[0] / 400))
+    thickness = 1
+    (tw, th), base = cv2.getTextSize(text, font, scale, thickness)
+    cv2.rectangle(tile, (0, 0), (min(tile.shape[1] - 1, tw + 6), th + base + 5), (0, 0, 0), -1)
+    cv2.putText(tile, text, (3, th + 3), font, scale, (0, 255, 255), thickness, cv2.LINE_AA)
+
+
+# --------------------------------------------------------------------------------------------
+# Inputs
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Job:
+    """One input to process: its frames, its ground truth (if any) and where outputs go."""
+
+    name: str
+    family: str
+    frames: str  # passed to open_source
+    gt: Optional[Path]
+    out: Optional[Path]  # folder for this input's masks and video, None = write nothing
+
+
+def _has_glob(text: str) -> bool:
+    return any(ch in text for ch in "*?[")
+
+
+def _is_cdnet_sequence(path: Path) -> bool:
+    return (path / "input").is_dir() and is_sequence(path)
+
+
+def _plan(input_path: str, gt: Optional[PathLike], report_dir: Optional[Path]) -> Tuple[
+        List[_Job], bool, List[str]]:
+    """Resolve the input to jobs; returns ``(jobs, is_dataset, notes)``."""
+    path = Path(input_path)
+    if not path.exists() and not _has_glob(input_path):
+        raise InputError(f"input {input_path} does not exist")
+    if gt is not None and not is_sequence(gt):
+        raise InputError(f"--gt {gt} is not a CDnet sequence folder (it has no groundtruth/)")
+
+    if path.is_dir() and not (path / "input").is_dir():
+        sequences = find_sequences(path)
+        usable = [s for s in sequences if (s / "input").is_dir()]
+        if usable and gt is not None:
+            raise InputError(f"{path} is a dataset root whose sequences carry their own ground "
+                             "truth: --gt only applies to a single input")
+        if usable:
+            notes = [f"{s.relative_to(path).as_posix()}: skipped (groundtruth/ but no input/)"
+                     for s in sequences if s not in usable]
+            jobs = []
+            for seq in usable:
+                rel = seq.relative_to(path)
+                jobs.append(_Job(name=rel.name, family=category_of(rel), frames=str(seq),
+                                 gt=seq, out=report_dir / rel if report_dir else None))
+            names = [j.name for j in jobs]
+            if len(set(names)) != len(names):  # root/a/x and root/b/x: keep the paths apart
+                jobs = [_Job(name=s.relative_to(path).as_posix(), family=j.family,
+                             frames=j.frames, gt=j.gt, out=j.out) for s, j in zip(usable, jobs)]
+            return jobs, True, notes
+
+    seq_gt = Path(gt) if gt is not None else (path if _is_cdnet_sequence(path) else None)
+    name = path.resolve().name if path.exists() else path.name  # a glob keeps its pattern
+    family = category_of(seq_gt.resolve().name) if seq_gt is not None else ""
+    return [_Job(name=name, family=family, frames=input_path, gt=seq_gt, out=report_dir)], \
+        False, []
+
+
+def _check_report_dir(report_dir: Path, overwrite: bool) -> None:
+    if report_dir.exists():
+        if not report_dir.is_dir():
+            raise OutputError(f"report folder {report_dir} exists and is not a folder")
+        if any(report_dir.iterdir()) and not overwrite:
+            raise OutputError(f"report folder {report_dir} exists and is not empty "
+                              "(use --overwrite to replace its results)")
+    try:
+        report_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise OutputError(f"cannot create report folder {report_dir}: {err.strerror}") from None
+
+
+# --------------------------------------------------------------------------------------------
+# Running one input
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass
+class _Scoring:
+    """Ground truth of one input and the frame numbers (1-based) to score."""
+
+    gt: GroundTruth
+    numbers: List[int]
+    resize: Optional[Tuple[int, int]]  # (w, h) to bring masks to the ground truth's size
+
+
+def _scoring(job: _Job, info: VideoInfo, *, start: int, stop: Optional[int], step: int,
+             skip_first: bool, ignore_roi_bmp: bool, resized: bool,
+             tolerate_empty: bool) -> Tuple[Optional[_Scoring], List[str]]:
+    """Which frames of ``job`` get scored; ``(None, notes)`` when none can be."""
+    if job.gt is None:
+        return None, []
+    gt = open_ground_truth(job.gt, ignore_roi_bmp=ignore_roi_bmp)
+    if (info.width, info.height) != (gt.width, gt.height) and not resized:
+        raise InputError(f"frames of {job.frames} are {info.width}x{info.height} but the ground "
+                         f"truth in {job.gt} is {gt.width}x{gt.height}")
+    # Frame numbers (1-based) this run processes; known exactly when the input's length is.
+    last = max(gt.frames)
+    if info.frame_count is not None:
+        last = min(last, start + (info.frame_count - 1) * step + 1)
+    if stop is not None:
+        last = min(last, stop)
+    processed = range(start + 1, last + 1, step)
+    if skip_first:
+        # The first frame the engines see has no history; a frame later in the input (say the
+        # start of CDnet traffic's temporal ROI, frame 900) has plenty and is scored.
+        processed = processed[1:]
+    try:
+        numbers = gt.select_frames(frames=processed)
+    except InputError as err:
+        if not tolerate_empty:
+            raise
+        return None, [f"not scored: {err}"]
+    resize = (gt.width, gt.height) if (info.width, info.height) != (gt.width, gt.height) \
+        else None
+    return _Scoring(gt, numbers, resize), list(gt.notes)
+
+
+def _run_job(job: _Job, methods: Sequence[str], params: Mapping[str, Mapping[str, Any]], *,
+             source_options: Dict[str, Any], max_frames: Optional[int], skip_first: bool,
+             ignore_roi_bmp: bool, masks: str, video: bool, tile_height: int, overwrite: bool,
+             quiet: bool, tolerate_empty: bool) -> List[ComparisonRow]:
+    options = dict(source_options)
+    start, step = options["start"], options["step"]
+    if max_frames is not None:
+        limit = start + max_frames * step
+        options["stop"] = limit if options["stop"] is None else min(options["stop"], limit)
+    resized = options.get("scale") is not None or options.get("width") is not None
+
+    with open_source(job.frames, **options) as source:
+        info = source.info
+        scoring, notes = _scoring(job, info, start=start, stop=options["stop"], step=step,
+                                  skip_first=skip_first, ignore_roi_bmp=ignore_roi_bmp,
+                                  resized=resized, tolerate_empty=tolerate_empty)
+        to_score = set(scoring.numbers) if scoring else set()
+        mask_size = scoring.resize if scoring and scoring.resize else (info.width, info.height)
+        engines = {m: create_engine(m, **params.get(m, {})) for m in methods}
+        seconds = dict.fromkeys(methods, 0.0)
+        not_ok = dict.fromkeys(methods, 0)
+        counts = {m: Counts() for m in methods}
+        scored: List[int] = []
+        n_frames = 0
+
+        with contextlib.ExitStack() as stack:
+            sinks = _open_mask_sinks(stack, job.out, methods, masks, size=mask_size,
+                                     fps=info.fps, overwrite=overwrite)
+            layout = TileLayout.for_frames(info.width, info.height, ["input", *methods],
+                                           tile_height=tile_height)
+            picture = None
+            if video and job.out is not None:
+                picture = stack.enter_context(VideoSink(
+                    job.out / "side_by_side.mp4", fps=info.fps, width=layout.width,
+                    height=layout.height, overwrite=overwrite))
+            frames = progress(source, total=info.frame_count, desc=job.name, quiet=quiet)
+            for index, frame in frames:
+                number = index + 1
+                labels = scoring.gt.labels(number) if number in to_score else None
+                outputs = []
+                for method, engine in engines.items():
+                    t0 = time.perf_counter()
+                    mask = engine.apply(frame)
+                    seconds[method] += time.perf_counter() - t0
+                    mask = _checked_mask(mask, method, info)
+                    status = getattr(engine, "last_status", "ok")
+                    if status is not None and status != "ok":
+                        not_ok[method] += 1
+                    if mask_size != (info.width, info.height):
+                        mask = cv2.resize(mask, mask_size, interpolation=cv2.INTER_NEAREST)
+                    if labels is not None:
+                        try:
+                            counts[method] += count_frame(mask, labels, scoring.gt.roi)
+                        except InputError as err:
+                            raise InputError(f"{scoring.gt.frames[number]}: {err}") from None
+                    if method in sinks:
+                        sinks[method].write(mask, index)
+                    outputs.append(mask)
+                if labels is not None:
+                    scored.append(number)
+                if picture is not None:
+                    picture.write(layout.compose(frame, outputs))
+                n_frames += 1
+    if n_frames == 0:
+        raise InputError(f"{job.frames}: no frames in the requested range")
+
+    missing: List[int] = []
+    if scoring is not None:
+        missing = sorted(to_score - set(scored))
+        if missing:
+            # The input ended before its ground truth: those frames count as all background
+            # (their objects become false negatives), as `bgsub eval --allow-missing` does.
+            notes.append(f"{len(missing)} ground-truth frames after the end of the input "
+                         "counted as background")
+            for number in missing:
+                labels = scoring.gt.labels(number)
+                empty = np.zeros_like(labels)
+                for method in methods:
+                    counts[method] += count_frame(empty, labels, scoring.gt.roi)
+        notes.append(f"scored frames {scoring.numbers[0]}-{scoring.numbers[-1]} "
+                     f"({len(scoring.numbers)} frames)")
+    rows = []
+    for method in methods:
+        metrics = counts[method].metrics() if scoring is not None else None
+        rows.append(ComparisonRow(
+            level="sequence", name=job.name, family=job.family, method=method,
+            frames=n_frames, seconds=seconds[method],
+            eval_frames=len(scoring.numbers) if scoring else 0,
+            counts=counts[method] if scoring else None, metrics=metrics,
+            not_ok=not_ok[method], notes=tuple(notes)))
+    return rows
+
+
+def _checked_mask(mask: Any, method: str, info: VideoInfo) -> np.ndarray:
+    if not isinstance(mask, np.ndarray) or mask.shape != (info.height, info.width) \
+            or mask.dtype != np.uint8:
+        shape = getattr(mask, "shape", None)
+        raise ProcessingError(f"method {method!r} returned a mask of shape {shape}, expected "
+                              f"({info.height}, {info.width}) uint8")
+    return mask
+
+
+def _open_mask_sinks(stack: contextlib.ExitStack, out: Optional[Path], methods: Sequence[str],
+                     masks: str, *, size: Tuple[int, int], fps: float, overwrite: bool
+                     ) -> Dict[str, Any]:
+    if out is None or masks == "none":
+        return {}
+    sinks = {}
+    for method in methods:
+        target = out / (method if masks == "png" else f"{method}.mkv")
+        sinks[method] = stack.enter_context(open_mask_sink(
+            target, width=size[0], height=size[1], fps=fps, overwrite=overwrite))
+    return sinks
+
+
+# --------------------------------------------------------------------------------------------
+# Means
+# --------------------------------------------------------------------------------------------
+
+
+def _means(rows: Sequence[ComparisonRow], methods: Sequence[str]) -> Tuple[
+        List[ComparisonRow], List[ComparisonRow]]:
+    """Per-family and overall mean rows, averaged by :class:`DatasetResult` (the CDnet way)."""
+    families: List[ComparisonRow] = []
+    overall: List[ComparisonRow] = []
+    for method in methods:
+        mine = [r for r in rows if r.method == method and r.metrics is not None]
+        if not mine:
+            continue
+        result = DatasetResult.from_sequences([
+            SequenceResult(name=r.name, category=r.family, gt_path="", pred_path="",
+                           counts=r.counts, n_frames=r.eval_frames, first_frame=0, last_frame=0)
+            for r in mine
+        ])
+        for category in result.categories:
+            members = [r for r in mine if r.family == category.name]
+            families.append(_mean_row("family", category.name, category.name, method, members,
+                                      category.metrics, category.counts))
+        total = Counts()
+        for category in result.categories:
+            total += category.counts
+        overall.append(_mean_row("overall", "overall", "", method, mine, result.overall, total))
+    families.sort(key=lambda r: (r.name, methods.index(r.method)))
+    return families, overall
+
+
+def _mean_row(level: str, name: str, family: str, method: str,
+              members: Sequence[ComparisonRow], metrics: Metrics, counts: Counts
+              ) -> ComparisonRow:
+    return ComparisonRow(
+        level=level, name=name, family=family, method=method,
+        frames=sum(r.frames for r in members), seconds=sum(r.seconds for r in members),
+        eval_frames=sum(r.eval_frames for r in members), counts=counts, metrics=metrics,
+        not_ok=sum(r.not_ok for r in members),
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# The entry point
+# --------------------------------------------------------------------------------------------
+
+
+def compare_methods(
+    input_path: PathLike,
+    *,
+    methods: Optional[Sequence[str]] = None,
+    report_dir: Optional[PathLike] = None,
+    gt: Optional[PathLike] = None,
+    params: Optional[Mapping[str, Mapping[str, Any]]] = None,
+    skip_first: bool = False,
+    ignore_roi_bmp: Optional[bool] = None,
+    start: int = 0,
+    stop: Optional[int] = None,
+    step: int = 1,
+    scale: Optional[float] = None,
+    width: Optional[int] = None,
+    max_frames: Optional[int] = None,
+    masks: str = "png",
+    video: bool = True,
+    tile_height: int = TILE_HEIGHT,
+    overwrite: bool = False,
+    quiet: bool = True,
+) -> ComparisonReport:
+    """Run ``methods`` on the same frames; time them and score them against ground truth.
+
+    Parameters
+    ----------
+    input_path : path
+        A CDnet sequence folder, a dataset root of such sequences, or a video / image folder /
+        glob pattern (see the module docstring).
+    methods : sequence of str, optional
+        Registered engine names; default all registered engines.
+    report_dir : path, optional
+        Where masks, side-by-side videos and ``report.{txt,csv,json}`` go; ``None`` writes
+        nothing (figures only). An existing non-empty folder needs ``overwrite``.
+    gt : path, optional
+        CDnet sequence folder with the ground truth of a single input (default: the input
+        itself when it is a CDnet sequence). Not allowed with a dataset root.
+    params : ``{method: {param: value}}``, optional
+        Engine parameters.
+    skip_first : bool
+        Do not score the first processed frame (the engines have seen nothing before it).
+        Unlike ``bgsub eval --skip-first``, which drops the first frame of the temporal ROI,
+        this only matters when that frame is the first processed one.
+    ignore_roi_bmp : bool, optional
+        Ignore ``ROI.bmp``; default: ignored for dataset roots (the real CDnet traffic ROI.bmp
+        has the wrong size), used for a single sequence.
+    start, stop, step, scale, width
+        Frame range and resizing, as :func:`bgsub.sources.open_source`; applied to every
+        sequence. Resized masks are brought back to the ground truth's size (nearest
+        neighbour) for scoring and writing.
+    max_frames : int, optional
+        Process at most this many frames per sequence.
+    masks : {"png", "mkv", "none"}
+        ``<method>/binNNNNNN.png``, lossless ``<method>.mkv``, or no masks.
+    video : bool
+        Write ``side_by_side.mp4`` per input.
+    tile_height : int
+        Largest height of one tile of the side-by-side video (frames are never enlarged).
+    overwrite : bool
+        Replace earlier results in ``report_dir``.
+    quiet : bool
+        No progress bars (they are also off when stderr is not a terminal).
+
+    Returns
+    -------
+    ComparisonReport
+
+    Raises
+    ------
+    InputError
+        Unknown method or parameter, missing or unreadable input or ground truth.
+    OutputError
+        ``report_dir`` exists and is not empty (without ``overwrite``), or cannot be written.
+    """
+    input_text = str(input_path)
+    names = list(methods) if methods else [spec.name for spec in available_engines()]
+    if not names:
+        raise InputError("no methods to compare")
+    duplicates = sorted({m for m in names if names.count(m) > 1})
+    if duplicates:
+        raise InputError(f"method {duplicates[0]!r} is listed twice")
+    params = dict(params or {})
+    for method in params:
+        if method not in names:
+            raise InputError(f"parameters given for {method!r}, which is not among the methods")
+    for method in names:
+        # Built once here so an unknown method, a bad parameter or a missing model file fails
+        # before anything is decoded or written.
+        get_engine_spec(method).create(**params.get(method, {}))
+    if masks not in MASK_FORMATS:
+        raise InputError(f"masks must be one of {', '.join(MASK_FORMATS)}, not {masks!r}")
+    if max_frames is not None and max_frames < 1:
+        raise InputError(f"max_frames must be at least 1, not {max_frames}")
+    if tile_height < 16:
+        raise InputError(f"tile height must be at least 16 pixels, not {tile_height}")
+
+    out = Path(report_dir) if report_dir is not None else None
+    jobs, is_dataset, plan_notes = _plan(input_text, gt, out)
+    ignore_roi = is_dataset if ignore_roi_bmp is None else bool(ignore_roi_bmp)
+    for job in jobs:  # bad ground truth (e.g. a mis-sized ROI.bmp) fails before any output
+        if job.gt is not None:
+            open_ground_truth(job.gt, ignore_roi_bmp=ignore_roi)
+    if out is not None:
+        _check_report_dir(out, overwrite)
+    source_options = dict(start=start, stop=stop, step=step, scale=scale, width=width)
+
+    report = ComparisonReport(
+        input=input_text, methods=names, report_dir=str(out) if out else None,
+        settings={
+            "start": start, "stop": stop, "step": step, "scale": scale, "width": width,
+            "max_frames": max_frames, "skip_first": skip_first, "roi_bmp": not ignore_roi,
+            "params": {m: dict(v) for m, v in params.items()},
+        },
+    )
+    outer = progress(jobs, total=len(jobs), desc="sequences", quiet=quiet or not is_dataset,
+                     unit="seq")
+    for job in outer:
+        report.rows.extend(_run_job(
+            job, names, params, source_options=source_options, max_frames=max_frames,
+            skip_first=skip_first, ignore_roi_bmp=ignore_roi, masks=masks, video=video,
+            tile_height=tile_height, overwrite=overwrite, quiet=quiet, tolerate_empty=is_dataset))
+    if is_dataset:
+        report.families, report.overall = _means(report.rows, names)
+    if plan_notes:
+        report.settings["skipped"] = plan_notes
+    if out is not None:
+        report.write(out)
+    return report

@@ -1,0 +1,82 @@
+"""`bgsub bench` and bgsub.bench: engine speed on a generated clip (no timing thresholds)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from bgsub.bench import TIMING_NOTE, bench_methods, machine_info, make_clip
+from bgsub.cli import main
+from bgsub.errors import InputError
+
+
+def test_bench_reports_positive_fps_per_method() -> None:
+    report = bench_methods(methods=["framediff", "mog2"], width=64, height=48, frames=2,
+                           repeats=2)
+    assert [r.method for r in report.results] == ["framediff", "mog2"]
+    for result in report.results:
+        assert len(result.fps_runs) == 2
+        assert all(f > 0 for f in result.fps_runs)
+        assert result.fps == pytest.approx(float(np.median(result.fps_runs)))
+        assert result.ms_per_frame == pytest.approx(1000.0 / result.fps)
+        assert result.peak_rss_mib is None  # not asked for
+    text = report.to_text()
+    assert "decoding and writing are excluded" in text
+    assert "framediff" in text and "mog2" in text
+
+
+def test_machine_is_described() -> None:
+    info = machine_info()
+    assert info.cpu and info.logical_cores >= 1 and 1 <= info.usable_cores <= info.logical_cores
+    assert info.numpy == np.__version__
+    assert info.date.endswith("+00:00")
+    text = info.to_text()
+    assert info.cpu in text and "OpenCV" in text and "BLAS" in text
+
+
+def test_cli_json(capsys) -> None:
+    code = main(["bench", "--size", "64x48", "--frames", "2", "--repeats", "1", "--methods",
+                 "framediff", "--json", "-q"])
+    assert code == 0
+    data = json.loads(capsys.readouterr().out)
+    assert (data["width"], data["height"], data["frames"]) == (64, 48, 2)
+    assert data["note"] == TIMING_NOTE
+    (result,) = data["results"]
+    assert result["method"] == "framediff" and result["fps"] > 0
+    assert data["machine"]["logical_cores"] >= 1
+
+
+def test_memory_is_measured_per_method() -> None:
+    report = bench_methods(methods=["framediff"], width=64, height=48, frames=2, repeats=1,
+                           memory=True)
+    (result,) = report.results
+    assert result.peak_rss_mib is not None and result.peak_rss_mib > 0
+    assert "peak RSS" in report.to_text()
+
+
+def test_clip_shape_and_fallback_for_tiny_sizes() -> None:
+    frames, description = make_clip(width=32, height=24, n_frames=3)
+    assert frames.shape == (3, 24, 32, 3) and frames.dtype == np.uint8
+    assert "panning random texture" in description  # below the scenes' minimum size
+    assert not np.array_equal(frames[0], frames[1])  # the camera moves
+    frames, _ = make_clip(width=64, height=48, n_frames=3)
+    assert frames.shape == (3, 48, 64, 3)
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["bench", "--size", "64by48"], "--size"),
+    (["bench", "--methods", "nosuch"], "unknown method"),
+    (["bench", "--methods", "framediff", "--frames", "0"], "at least 1"),
+    (["bench", "--methods", "framediff", "--param", "framediff.nosuch=1"], "no parameter"),
+])
+def test_bad_options_exit_2(capsys, argv, message) -> None:
+    assert main(argv) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_api_rejects_params_for_other_methods() -> None:
+    with pytest.raises(InputError):
+        bench_methods(methods=["framediff"], params={"mog2": {"history": 10}}, frames=1,
+                      repeats=1, width=64, height=48)

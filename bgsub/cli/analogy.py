@@ -1,0 +1,108 @@
+"""``bgsub analogy``: apply the motion from X to Y to a new image X2 (paper, Figure 7)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from bgsub.cli.common import note
+from bgsub.errors import InputError, OutputError
+
+_DESCRIPTION = """\
+Make an analogy with a gated RBM: infer the mapping units from the pair (X, Y) -- how X moved
+into Y -- and apply them to X2, giving the image Y2 that X2 would become under the same motion.
+
+Images are read as gray. When X, Y and X2 are exactly one patch (e.g. 13x13) the model is
+applied once. Larger images (all three the same size) are processed patch by patch: every patch
+of X2 moves the way the patch at the same place moved from X to Y, and overlapping outputs are
+blended (so a spatially varying motion is transferred place by place). With --resize the three
+images are first shrunk to one patch instead (the whole image is one motion), and Y2 is written
+at patch size, enlarged by --zoom for viewing.
+Output: 8-bit gray; binary models write probabilities (0-255), Gaussian models intensities.
+"""
+
+_EPILOG = """\
+examples:
+  bgsub analogy x.png y.png x2.png -o y2.png                    (dots-translation model)
+  bgsub analogy x.png y.png x2.png -o y2.png --model dots-rotation --zoom 8
+  bgsub analogy a.png b.png c.png -o d.png --model natural
+"""
+
+
+def register(subparsers: Any) -> None:
+    parser = subparsers.add_parser(
+        "analogy",
+        help="transfer the motion X -> Y onto X2",
+        description=_DESCRIPTION,
+        epilog=_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("x", metavar="X", help="first image of the example pair")
+    parser.add_argument("y", metavar="Y", help="second image of the example pair (X moved)")
+    parser.add_argument("x2", metavar="X2", help="image to move the same way")
+    parser.add_argument("-o", "--output", required=True, metavar="Y2.png", help="output image")
+    parser.add_argument("--model", default="dots-translation",
+                        help="shipped model name or .npz path (default dots-translation)")
+    parser.add_argument("--resize", action="store_true",
+                        help="shrink the images to one patch instead of working patch by patch")
+    parser.add_argument("--stride", type=int, default=None, metavar="PX",
+                        help="patch step for large images (default patch size // 3)")
+    parser.add_argument("--zoom", type=int, default=1, metavar="N",
+                        help="enlarge the output N times (nearest neighbour), for viewing")
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing output")
+    parser.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
+    parser.set_defaults(handler=run)
+
+
+def _read_gray(path: str):
+    import cv2
+    import numpy as np
+
+    if not Path(path).is_file():
+        raise InputError(f"image {path} does not exist")
+    image = cv2.imread(path, cv2.IMREAD_GRAYSCALE)
+    if image is None:
+        raise InputError(f"cannot read image {path}")
+    return image.astype(np.float32) / 255.0
+
+
+def run(args: argparse.Namespace) -> int:
+    import cv2
+    import numpy as np
+
+    from bgsub.rbm import load_model
+    from bgsub.readout import analogy_images
+
+    out = Path(args.output)
+    if out.exists() and not args.overwrite:
+        raise OutputError(f"{out} exists (use --overwrite to replace it)")
+    if args.zoom < 1:
+        raise InputError(f"--zoom must be at least 1, not {args.zoom}")
+    model = load_model(args.model)
+    p = model.patch_size
+    images = [_read_gray(path) for path in (args.x, args.y, args.x2)]
+    if args.resize:
+        images = [cv2.resize(im, (p, p), interpolation=cv2.INTER_AREA) for im in images]
+    shapes = {im.shape for im in images}
+    if len(shapes) != 1:
+        sizes = ", ".join(f"{im.shape[1]}x{im.shape[0]}" for im in images)
+        raise InputError(f"X, Y and X2 must have the same size (got {sizes}); or use --resize")
+    h, w = images[0].shape
+    if h < p or w < p:
+        raise InputError(f"images are {w}x{h}, smaller than the model's {p}x{p} patches; use --resize")
+    if model.output_units == "binary" and float(np.mean(images[0])) > 0.35:
+        note("a binary (random-dot) model expects dark images with sparse bright dots", quiet=args.quiet)
+    result = analogy_images(model, *images, stride=args.stride)
+    picture = np.clip(np.rint(result * 255.0), 0, 255).astype(np.uint8)
+    if args.zoom > 1:
+        picture = np.kron(picture, np.ones((args.zoom, args.zoom), np.uint8))
+    try:
+        ok = cv2.imwrite(str(out), picture)
+    except cv2.error:
+        ok = False
+    if not ok:
+        raise OutputError(f"cannot write image {out} (check the folder and the extension)")
+    if not args.quiet:
+        print(f"wrote {out} ({picture.shape[1]}x{picture.shape[0]})")
+    return 0

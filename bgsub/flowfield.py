@@ -1,0 +1,457 @@
+"""Patch motion from the gated RBM, coarse to fine, and the dense field assembled from it.
+
+One 13x13 patch pair can only show a displacement of a few pixels (the model's range, +-3 or +-4
+px), but a panning camera moves 5-20 px per frame. :func:`estimate_flow` therefore works on an
+image pyramid (``cv2.pyrDown``): at the coarsest level motions are small enough for the model;
+the camera motion fitted there (RANSAC, :mod:`bgsub.global_motion`) pre-warps the second frame
+at the next finer level, so the model only ever sees the *residual* motion, which is within its
+range for everything that moves with the camera. Each level is one batched inference over all
+(textured) patches.
+
+Coordinates: a pyramid level ``l`` pixel ``x_l`` is ``x / 2**l`` in full-resolution pixels
+(``pyrDown`` centres output pixel ``i`` on input pixel ``2 i``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, List, Optional
+
+import cv2
+import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
+
+from bgsub.global_motion import GlobalMotion, apply_homography, fit_global_motion
+from bgsub.tiling import TEXTURE_SCALE, patch_grid, texture_map, to_gray
+
+__all__ = [
+    "FlowEstimate",
+    "estimate_flow",
+    "auto_levels",
+    "model_range",
+    "patch_motion",
+    "dense_from_patches",
+]
+
+
+@dataclass
+class FlowEstimate:
+    """Patch motion between two frames (full-resolution pixel units).
+
+    Attributes
+    ----------
+    centres : (N, 2) float32
+        Patch centres ``(x, y)`` in the first frame.
+    disp : (N, 2) float32
+        ``(dx, dy)``: the patch content at ``centres`` is at ``centres + disp`` in the second
+        frame (pre-warp plus the model's residual). Undefined where not ``valid``.
+    confidence : (N,) float32
+        The readout's confidence in [0, 1] (0 for patches not evaluated).
+    texture : (N,) float32
+        Texture weight in [0, 1) (:func:`bgsub.tiling.texture_score` mapping).
+    valid : (N,) bool
+        Patch evaluated (not flat, enough texture) and its residual inside the model's range.
+    beyond : (N,) bool
+        Patch evaluated but its residual at the edge of the model's range: it moves more than
+        the model can see relative to the pre-warp (after a good pre-warp, a moving object).
+    grid_shape : (rows, cols)
+    stride : int
+        Grid step at full resolution.
+    prewarp : (3, 3) float64
+        The camera motion used to pre-warp the finest level (identity when ``levels == 1`` and no
+        ``prior``).
+    residual : (N, 2) float32
+        The model's own reading at the finest level (``disp`` minus the pre-warp's motion).
+    dense : (H, W, 2) float32 or None
+        Per-pixel flow (NaN unknown) when asked for.
+    levels : int
+        Pyramid levels used.
+    coarse_status : str
+        ``"ok"`` or why a coarse level's fit was refused (its pre-warp then kept the prior).
+    """
+
+    centres: np.ndarray
+    disp: np.ndarray
+    confidence: np.ndarray
+    texture: np.ndarray
+    valid: np.ndarray
+    grid_shape: tuple
+    stride: int
+    prewarp: np.ndarray
+    residual: np.ndarray
+    dense: Optional[np.ndarray] = None
+    levels: int = 1
+    coarse_status: str = "ok"
+    beyond: Optional[np.ndarray] = None
+
+    @property
+    def weights(self) -> np.ndarray:
+        """``confidence * texture`` where valid, else 0: ``(N,) float32``."""
+        return np.where(self.valid, self.confidence * self.texture, 0.0).astype(np.float32)
+
+
+def model_range(model: Any) -> int:
+    """Largest displacement (px, per axis) the model was trained for: its ``meta["max_disp"]``
+    (or ``meta["max_shift"]``), else 3."""
+    meta = getattr(model, "meta", {}) or {}
+    for key in ("max_disp", "max_shift", "max_displacement"):
+        if key in meta:
+            try:
+                return max(1, int(round(float(meta[key]))))
+            except (TypeError, ValueError):
+                pass
+    return 3
+
+
+def patch_motion(model: Any, x_raw: np.ndarray, y_raw: np.ndarray, *, max_disp: int) -> tuple:
+    """One batched gated-RBM readout.
+
+    Parameters
+    ----------
+    model : bgsub.rbm.GatedRBM, or any object with ``patch_size`` and a method
+        ``patch_motion(x_raw, y_raw, *, max_disp) -> (disp, confidence, flat)`` of this contract
+    x_raw, y_raw : (N, p*p) float32 raw patches in [0, 1]
+    max_disp : int
+
+    Returns
+    -------
+    disp : (N, 2) float32 ``(dx, dy)``
+    confidence : (N,) float32, 0 for flat pairs
+    flat : (N,) bool
+    """
+    if len(x_raw) == 0:
+        return np.zeros((0, 2), np.float32), np.zeros(0, np.float32), np.zeros(0, bool)
+    if hasattr(model, "patch_motion"):
+        # Any other patch-motion estimator with the same contract (used by tests as an oracle).
+        return model.patch_motion(x_raw, y_raw, max_disp=max_disp)
+    from bgsub import readout
+
+    x, y, flat = model.prepare(x_raw, y_raw)
+    disp, conf = readout.patch_displacements(model, x, y, max_disp=max_disp)
+    conf = np.where(flat, 0.0, conf).astype(np.float32)
+    return np.asarray(disp, np.float32), conf, flat
+
+
+def _warp_back(image: np.ndarray, matrix: np.ndarray) -> np.ndarray:
+    """``out(x) = image(matrix @ x)``: the second frame resampled into the first frame's grid."""
+    h, w = image.shape[:2]
+    return cv2.warpPerspective(image, matrix, (w, h), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                               borderMode=cv2.BORDER_REPLICATE)
+
+
+def _scaled(matrix: np.ndarray, factor: float) -> np.ndarray:
+    """The homography ``matrix`` (full-resolution pixels) in pixels scaled by ``factor``."""
+    s = np.diag([factor, factor, 1.0])
+    si = np.diag([1.0 / factor, 1.0 / factor, 1.0])
+    return s @ matrix @ si
+
+
+def auto_levels(shape: tuple, *, max_motion: float, model_disp: int, patch_size: int) -> int:
+    """Pyramid levels so that ``max_motion`` px at full size is within ``model_disp`` at the
+    coarsest level, while that level still holds a few patches across."""
+    h, w = shape[:2]
+    levels = 1
+    # One pixel of margin: readings at the edge of the range are ambiguous (clipped or not).
+    while max_motion / 2 ** (levels - 1) > model_disp - 1 and min(h, w) / 2**levels >= 4 * patch_size:
+        levels += 1
+    return levels
+
+
+def estimate_flow(
+    frame1: np.ndarray,
+    frame2: np.ndarray,
+    *,
+    model: Any,
+    stride: int = 6,
+    levels: Optional[int] = None,
+    max_motion: float = 20.0,
+    max_disp: Optional[int] = None,
+    coarse_stride: Optional[int] = None,
+    prior: Optional[np.ndarray] = None,
+    coarse_model: str = "affine",
+    min_texture: float = 0.05,
+    max_patches: Optional[int] = None,
+    dense: bool = False,
+    ransac_threshold: float = 1.0,
+    iterations: int = 1,
+    search: int = 0,
+    coarse_iterations: int = 1,
+    finest: int = 0,
+) -> FlowEstimate:
+    """Patch displacements between two frames, coarse to fine.
+
+    Parameters
+    ----------
+    frame1, frame2 : (H, W, 3) BGR or (H, W) gray uint8, or (H, W) float32 gray in [0, 1]
+    model : bgsub.rbm.GatedRBM
+        The patch-motion model (``patch_size`` fixes the patch side).
+    stride : int
+        Patch grid step at full resolution (6: patches overlap by more than half).
+    levels : int, optional
+        Pyramid levels (1 = full resolution only). Default: enough for ``max_motion``.
+    max_motion : float
+        Largest frame-to-frame motion (px, full resolution) to plan the pyramid for.
+    max_disp : int, optional
+        The model's displacement range; default :func:`model_range`.
+    coarse_stride : int, optional
+        Patch grid step at the coarser levels (default ``stride``, at least 4).
+    prior : (3, 3) float64, optional
+        A guess of the camera motion (e.g. the previous frame's). With more than one level,
+        the coarsest level is read twice, pre-warped by the prior and by the identity, and the
+        start more patches agree with is kept.
+    coarse_model : str
+        Motion model fitted at the coarser levels to pre-warp the next (see
+        :func:`bgsub.global_motion.fit_global_motion`).
+    min_texture : float
+        Patches whose texture weight is below this are not evaluated (flat or single edge).
+    max_patches : int, optional
+        Evaluate at most this many patches per level (the most textured): bounds the cost.
+    dense : bool
+        Also assemble the ``(H, W, 2)`` field (:func:`dense_from_patches`).
+    ransac_threshold : float
+        RANSAC inlier distance at each coarse level, in that level's pixels.
+    iterations : int
+        Readouts at the finest level: each one after the first re-warps by the motion fitted to
+        the one before, so the model reads residuals near zero, where it is most accurate
+        (costs one more batched inference per extra iteration). Coarser levels read once.
+
+    coarse_iterations : int
+        Readouts at each coarser level (like ``iterations``).
+    finest : int
+        Pyramid level of the final readout (0 = full resolution). On blurry footage the model
+        reads motion better on a reduced image; results are still in full-resolution pixels
+        (patch centres on a grid of ``stride`` there).
+    search : int
+        Also start the coarsest level from shifts on a ``(2 search + 1)^2`` grid (steps of
+        about the model's range at that level), for shaking cameras whose motion the previous
+        frame does not predict; each start costs one readout of the coarsest level.
+
+    Returns
+    -------
+    FlowEstimate
+    """
+    g1, g2 = to_gray(frame1), to_gray(frame2)
+    if g1.shape != g2.shape:
+        from bgsub.errors import InputError
+
+        raise InputError(f"frames differ in size: {g1.shape} and {g2.shape}")
+    p = int(model.patch_size)
+    rng = int(max_disp) if max_disp is not None else model_range(model)
+    if levels is None:
+        levels = auto_levels(g1.shape, max_motion=max_motion, model_disp=rng, patch_size=p)
+    levels = max(1, int(levels))
+    pyr1: List[np.ndarray] = [g1]
+    pyr2: List[np.ndarray] = [g2]
+    for _ in range(levels - 1):
+        if min(pyr1[-1].shape) < 2 * p:
+            break
+        pyr1.append(cv2.pyrDown(pyr1[-1]))
+        pyr2.append(cv2.pyrDown(pyr2[-1]))
+    levels = len(pyr1)
+    cstride = max(4, int(coarse_stride or stride))
+
+    h_est = np.eye(3) if prior is None else np.asarray(prior, np.float64)
+    status = "ok"
+    if (prior is not None or search > 0) and levels > 1:
+        # Several hypotheses for the start: the prior (a steady pan continues), no motion (a
+        # shaking camera reverses) and a grid of shifts ``search`` steps of about the model's
+        # range on each side; the coarsest level keeps the one most patches agree with.
+        lvl = levels - 1
+        factor = 0.5**lvl
+        step = max(1.0, rng - 1.0) / factor
+        cands = [np.eye(3)] + ([h_est] if prior is not None else [])
+        for i in range(-search, search + 1):
+            for j in range(-search, search + 1):
+                if i or j:
+                    cands.append(np.array([[1.0, 0, i * step], [0, 1.0, j * step], [0, 0, 1]]))
+        h_est = _best_start(pyr1[lvl], pyr2[lvl], cands, factor, model, p, cstride, rng,
+                            min_texture, max_patches, coarse_model, ransac_threshold, h_est)
+        levels_plan = range(levels - 2, 0, -1)
+    else:
+        levels_plan = range(levels - 1, 0, -1)
+    iterations = max(1, int(iterations))
+    fine = min(max(0, int(finest)), levels - 1)
+    # Every coarse level, and all but the last readout of the finest one, only serve to improve
+    # the pre-warp; the last readout is the result.
+    plan = [(lvl, cstride) for lvl in levels_plan if lvl > fine
+            for _ in range(max(1, int(coarse_iterations)))]
+    fine_stride = stride if fine == 0 else max(4, int(round(stride / 2**fine)))
+    plan += [(fine, fine_stride)] * (iterations - 1)
+    cache: dict = {}
+    for lvl, step in plan:
+        factor = 0.5**lvl
+        est = _level(pyr1[lvl], pyr2[lvl], _scaled(h_est, factor), model, p, step, rng,
+                     min_texture, max_patches, accept_edge=lvl > fine, cache=cache)
+        fitted = _fit_level(est, coarse_model, ransac_threshold, pyr1[lvl].shape)
+        if fitted.ok:
+            h_est = _scaled(fitted.matrix, 1.0 / factor)
+        elif status == "ok":
+            status = f"level {lvl}: {fitted.reason}"
+
+    factor = 0.5**fine
+    est = _level(pyr1[fine], pyr2[fine], _scaled(h_est, factor), model, p, fine_stride, rng,
+                 min_texture, max_patches, cache=cache)
+    up = np.float32(2**fine)
+    out = FlowEstimate(
+        centres=est["centres"] * up, disp=est["disp"] * up, confidence=est["conf"],
+        texture=est["texture"], valid=est["valid"], grid_shape=est["grid_shape"],
+        stride=fine_stride * 2**fine, prewarp=h_est, residual=est["residual"] * up,
+        levels=levels, coarse_status=status, beyond=est["beyond"],
+    )
+    if dense:
+        out.dense = dense_from_patches(out, shape=g1.shape, patch_size=p)
+    return out
+
+
+def _level(g1, g2, h_est, model, p, stride, rng, min_texture, max_patches, *,
+           accept_edge: bool = False, cache: Optional[dict] = None, read: bool = True) -> dict:
+    """Patch motion at one level after pre-warping ``g2`` by ``h_est`` (that level's pixels).
+
+    ``accept_edge``: keep readings at the edge of the model's range (a larger motion, clipped).
+    They still point the right way, which is all a pre-warp needs; the final level drops them.
+    ``cache``: a dict kept across calls on the same ``g1`` and ``stride`` (the first frame's
+    grid, texture and patches do not change between iterations).
+    """
+    key = (g1.shape, stride)
+    if cache is not None and key in cache:
+        centres, grid_shape, tex, pick, x_pick = cache[key]
+        cache["pick"], cache["x"] = pick, x_pick
+    else:
+        centres, grid_shape = patch_grid(g1.shape, patch_size=p, stride=stride)
+        n = len(centres)
+        tex = np.zeros(n, np.float32)
+        if n:
+            tmap = texture_map(g1, window=p)
+            ci = centres.astype(np.intp)  # centres are integers for odd p
+            e = tmap[ci[:, 1], ci[:, 0]]
+            tex = (e / (e + np.float32(TEXTURE_SCALE))).astype(np.float32)
+        pick = np.flatnonzero(tex >= min_texture)
+        if max_patches is not None and len(pick) > max_patches:
+            pick = pick[np.argsort(-tex[pick], kind="stable")[:max_patches]]
+            pick.sort()
+        x_pick = _patches_at(g1, centres[pick], p)
+        if cache is not None:
+            cache[key] = (centres, grid_shape, tex, pick, x_pick)
+            cache["pick"], cache["x"] = pick, x_pick
+    n = len(centres)
+    residual = np.zeros((n, 2), np.float32)
+    conf = np.zeros(n, np.float32)
+    valid = np.zeros(n, bool)
+    beyond = np.zeros(n, bool)
+    if len(pick) and read:
+        warped = g2 if np.allclose(h_est, np.eye(3)) else _warp_back(g2, h_est)
+        y_pick = _patches_at(warped, centres[pick], p)
+        d, c, flat = patch_motion(model, x_pick, y_pick, max_disp=rng)
+        residual[pick] = d
+        conf[pick] = c
+        # A reading at the edge of the range may be a larger motion clipped: not trusted.
+        inside = np.max(np.abs(d), axis=1) < rng - 0.25
+        valid[pick] = ~flat & (inside | accept_edge)
+        beyond[pick] = ~flat & ~inside
+    # Correspondence: x -> H (x + r), because warped(x + r) = g2(H (x + r)) ~ g1(x).
+    dst = apply_homography(h_est, centres + residual).astype(np.float32)
+    disp = dst - centres
+    return dict(centres=centres, grid_shape=grid_shape, disp=disp, residual=residual,
+                conf=conf, texture=tex, valid=valid, beyond=beyond)
+
+
+def _best_start(g1, g2, cands, factor, model, p, stride, rng, min_texture, max_patches,
+                coarse_model, threshold, fallback) -> np.ndarray:
+    """The candidate start (full-resolution homographies) most coarsest-level patches agree
+    with after refinement, read in ONE batched inference over all candidates."""
+    cache: dict = {}
+    est0 = _level(g1, g1, np.eye(3), None, p, stride, rng, min_texture, max_patches,
+                  cache=cache, read=False)
+    centres, tex, pick, x_pick = est0["centres"], est0["texture"], cache["pick"], cache["x"]
+    if len(pick) == 0:
+        return fallback
+    scaled = [_scaled(c, factor) for c in cands]
+    ys = [_patches_at(_warp_back(g2, h) if not np.allclose(h, np.eye(3)) else g2,
+                      centres[pick], p) for h in scaled]
+    d, c, flat = patch_motion(model, np.tile(x_pick, (len(cands), 1)), np.concatenate(ys),
+                              max_disp=rng)
+    best, best_h = -1, fallback
+    n, k = len(centres), len(pick)
+    for i, h in enumerate(scaled):
+        residual = np.zeros((n, 2), np.float32)
+        conf = np.zeros(n, np.float32)
+        valid = np.zeros(n, bool)
+        sl = slice(i * k, (i + 1) * k)
+        residual[pick], conf[pick], valid[pick] = d[sl], c[sl], ~flat[sl]
+        dst = apply_homography(h, centres + residual).astype(np.float32)
+        est = dict(centres=centres, disp=dst - centres, conf=conf, texture=tex, valid=valid)
+        fitted = _fit_level(est, coarse_model, threshold, g1.shape)
+        if fitted.ok and fitted.n_inliers > best:
+            best, best_h = fitted.n_inliers, _scaled(fitted.matrix, 1.0 / factor)
+    return best_h
+
+
+def _patches_at(image: np.ndarray, centres: np.ndarray, p: int) -> np.ndarray:
+    """The ``p x p`` patches centred at integer ``centres``: ``(n, p*p) float32`` (one gather
+    from a strided view, no loop)."""
+    if len(centres) == 0:
+        return np.zeros((0, p * p), np.float32)
+    windows = sliding_window_view(image, (p, p))
+    half = p // 2
+    ci = centres.astype(np.intp) - half
+    return windows[ci[:, 1], ci[:, 0]].reshape(len(ci), p * p).astype(np.float32, copy=False)
+
+
+def _fit_level(est: dict, model: str, threshold: float, shape: tuple) -> GlobalMotion:
+    w = np.where(est["valid"], est["conf"] * est["texture"], 0.0)
+    n_valid = int(np.count_nonzero(w > 0))
+    # Few patches at a coarse level: fall back to fewer degrees of freedom.
+    if n_valid < 40 and model in ("homography", "affine"):
+        model = "similarity"
+    if n_valid < 12:
+        model = "translation"
+    return fit_global_motion(est["centres"], est["centres"] + est["disp"], weights=w, model=model,
+                             threshold=threshold, min_points=6,
+                             frame_size=(shape[1], shape[0]))
+
+
+def dense_from_patches(
+    flow: FlowEstimate, *, shape: tuple, patch_size: int = 13, min_weight: float = 1e-3
+) -> np.ndarray:
+    """Per-pixel flow from overlapping patch displacements (confidence-weighted average).
+
+    Every valid patch votes for its displacement with weight ``confidence * texture``; a pixel
+    takes the bilinear, weight-normalised average of the votes of the four grid patches around
+    it, which is a smooth robust blend where patches agree and follows the better-supported
+    patch where they do not. Pixels no valid patch covers are NaN.
+
+    Parameters
+    ----------
+    flow : FlowEstimate
+    shape : (H, W)
+    patch_size : int
+    min_weight : float
+        Pixels whose summed weight is below this are NaN.
+
+    Returns
+    -------
+    (H, W, 2) float32, NaN where unknown.
+    """
+    h, w = int(shape[0]), int(shape[1])
+    rows, cols = flow.grid_shape
+    out = np.full((h, w, 2), np.nan, np.float32)
+    if rows == 0 or cols == 0:
+        return out
+    wts = flow.weights.reshape(rows, cols)
+    num = (flow.disp * flow.weights[:, None]).reshape(rows, cols, 2).astype(np.float32)
+    grid = np.dstack([num, wts]).astype(np.float32)
+    half = (patch_size - 1) / 2.0
+    s = float(flow.stride)
+    # Pixel (x, y) sits at grid coordinates ((x - half) / s, (y - half) / s).
+    m = np.array([[1.0 / s, 0.0, -half / s], [0.0, 1.0 / s, -half / s]])
+    up = cv2.warpAffine(grid, m, (w, h), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                        borderMode=cv2.BORDER_REPLICATE)
+    den = up[:, :, 2]
+    ok = den > min_weight
+    # Only pixels inside some patch: the grid covers [0, last centre + half] in each axis.
+    cover_x = (cols - 1) * s + patch_size
+    cover_y = (rows - 1) * s + patch_size
+    ok[:, int(cover_x):] = False
+    ok[int(cover_y):, :] = False
+    out[ok] = up[ok, :2] / den[ok, None]
+    return out

@@ -1,0 +1,348 @@
+"""Layer 1 of the Object Semantic Hierarchy: what does not move with the camera is foreground.
+
+Two pieces of evidence, fused into one clean mask:
+
+* :class:`CompensatedBackground`: per-pixel colour statistics (running mean and variance) kept in
+  the *current* frame's coordinates: every frame the model is warped by the camera motion before
+  it is compared and updated. Each pixel has an age (frames of history); pixels that scroll in at
+  the border start at age 0 and are never called foreground until they have ``min_age`` frames
+  of history (their statistics start from the current frame). Young pixels learn fast
+  (rate ``1 / (age + 1)``, a plain average), old ones at ``alpha``. The comparison is against the
+  background's local min/max envelope (``envelope`` px), so the sub-pixel misregistration that
+  every warp leaves on strong edges does not light up as foreground.
+* :func:`flow_violation_map`: local motion vectors (gated-RBM patches or tracked corners) that
+  disagree with the motion the camera predicts for their position, splatted to a per-pixel map
+  weighted by their reliability.
+
+:func:`fuse_masks` combines them and thresholds, and cleans the mask (morphology, removal of blobs below ``min_area`` pixels).
+The fused score is ``bg_score`` times a gain that rises above 1 where local motion violates the
+camera's and falls below 1 where it confirms it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional
+
+import cv2
+import numpy as np
+
+from bgsub.global_motion import apply_homography
+
+__all__ = [
+    "BackgroundParams",
+    "CompensatedBackground",
+    "flow_violation_map",
+    "fuse_masks",
+    "clean_mask",
+]
+
+
+@dataclass
+class BackgroundParams:
+    """Parameters of :class:`CompensatedBackground` (gray levels are 0-255).
+
+    Attributes
+    ----------
+    alpha : float
+        Learning rate of pixels with a long history (the floor of ``1 / (age + 1)``).
+    fg_alpha : float
+        Learning rate of pixels called foreground: small, so an object is not learnt into the
+        background while it moves, but not zero, so a ghost (background uncovered by an object
+        that was there when the model started) fades.
+    k_sigma : float
+        A pixel differs from the background when its envelope distance exceeds ``k_sigma``
+        standard deviations ...
+    min_diff : float
+        ... and ``min_diff`` gray levels (guards low-variance pixels against noise).
+    init_std, min_std : float
+        Standard deviation given to new pixels, and the floor of the learnt one.
+    envelope : int
+        Side of the neighbourhood whose background min/max brackets a pixel (1 = the pixel
+        only); 3 tolerates a one-pixel misregistration.
+    min_age : int
+        Frames of history a pixel needs before it can be foreground.
+    max_age : int
+        Ages are capped here (only ``1 / (age + 1)`` depends on them).
+    """
+
+    alpha: float = 0.1
+    fg_alpha: float = 0.01
+    k_sigma: float = 2.0
+    min_diff: float = 10.0
+    init_std: float = 12.0
+    min_std: float = 6.0
+    envelope: int = 1
+    min_age: int = 1
+    max_age: int = 255
+
+
+class CompensatedBackground:
+    """A per-pixel colour background model that moves with the camera.
+
+    Usage per frame: :meth:`warp` by the camera motion (previous -> current frame), then
+    :meth:`score` the current frame, then :meth:`update` with the decided mask.
+    """
+
+    def __init__(self, params: Optional[BackgroundParams] = None) -> None:
+        self.params = params or BackgroundParams()
+        self.mean: Optional[np.ndarray] = None  # (H, W, C) float32, 0-255
+        self.var: Optional[np.ndarray] = None  # (H, W, C) float32
+        self.age: Optional[np.ndarray] = None  # (H, W) float32
+
+    @property
+    def initialised(self) -> bool:
+        return self.mean is not None
+
+    @staticmethod
+    def _as_float(frame: np.ndarray) -> np.ndarray:
+        f = np.asarray(frame, dtype=np.float32)
+        return f[:, :, None] if f.ndim == 2 else f
+
+    def reset(self, frame: np.ndarray) -> None:
+        """Start over from ``frame`` ((H, W, C) or (H, W) uint8): every pixel age 0."""
+        f = self._as_float(frame)
+        self.mean = f.copy()
+        self.var = np.full_like(f, self.params.init_std**2)
+        self.age = np.zeros(f.shape[:2], np.float32)
+
+    def warp(self, matrix: np.ndarray) -> None:
+        """Move the model into the current frame's coordinates.
+
+        Parameters
+        ----------
+        matrix : (3, 3) float64
+            Previous-frame -> current-frame pixel coordinates.
+
+        Pixels of the current frame that the previous one did not see get age 0 (their mean and
+        variance are then replaced by the current frame in :meth:`update`).
+        """
+        if self.mean is None or np.allclose(matrix, np.eye(3), atol=1e-9):
+            return
+        h, w = self.age.shape
+        flags = cv2.INTER_LINEAR
+        self.mean = _warp(self.mean, matrix, (w, h), flags, cv2.BORDER_REPLICATE)
+        self.var = _warp(self.var, matrix, (w, h), flags, cv2.BORDER_REPLICATE)
+        # Age with a zero border: uncovered pixels have no history. Linear interpolation lets
+        # a pixel half-inside inherit a lower age, which is the cautious side.
+        self.age = cv2.warpPerspective(self.age, matrix, (w, h), flags=flags,
+                                       borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
+
+    def score(self, frame: np.ndarray) -> np.ndarray:
+        """How far ``frame`` is from the background, in units of the decision threshold.
+
+        Parameters
+        ----------
+        frame : (H, W, C) or (H, W) uint8, same channels as at :meth:`reset`
+
+        Returns
+        -------
+        (H, W) float32 >= 0; values > 1 differ by more than ``k_sigma`` std devs and
+        ``min_diff`` gray levels (the larger of the two ratios' minimum). 0 where the pixel is
+        younger than ``min_age``.
+        """
+        p = self.params
+        f = self._as_float(frame)
+        if self.mean is None:
+            return np.zeros(f.shape[:2], np.float32)
+        if p.envelope > 1:
+            k = np.ones((p.envelope, p.envelope), np.uint8)
+            lo = _channels(cv2.erode(self.mean, k), f.shape[2])
+            hi = _channels(cv2.dilate(self.mean, k), f.shape[2])
+            diff = np.maximum(np.maximum(f - hi, lo - f), 0.0)
+        else:
+            diff = np.abs(f - self.mean)
+        # diff / max(k * std, min_diff) == min(diff / (k std), diff / min_diff).
+        denom = np.sqrt(self.var)
+        denom *= p.k_sigma
+        np.maximum(denom, max(p.min_diff, p.k_sigma * p.min_std), out=denom)
+        ratio = np.divide(diff, denom, out=diff)
+        out = ratio[:, :, 0]
+        for c in range(1, ratio.shape[2]):
+            out = np.maximum(out, ratio[:, :, c])
+        out = np.array(out, dtype=np.float32)  # own contiguous copy
+        out[self.age < p.min_age] = 0.0
+        return out.astype(np.float32, copy=False)
+
+    def update(self, frame: np.ndarray, fgmask: Optional[np.ndarray] = None,
+               learning_rate: float = -1.0) -> None:
+        """Blend ``frame`` into the model.
+
+        Parameters
+        ----------
+        frame : (H, W, C) or (H, W) uint8
+        fgmask : (H, W) uint8/bool, optional
+            Pixels called foreground learn at ``fg_alpha`` instead.
+        learning_rate : float
+            Overrides ``alpha`` when in [0, 1] (OpenCV's convention: negative = own rate).
+        """
+        p = self.params
+        f = self._as_float(frame)
+        if self.mean is None or self.mean.shape != f.shape:
+            self.reset(f)
+            self.age[:] = 1.0
+            return
+        alpha = p.alpha if not 0.0 <= learning_rate <= 1.0 else learning_rate
+        rate = np.maximum(1.0 / (self.age + 1.0), alpha).astype(np.float32)
+        if fgmask is not None:
+            fg = np.asarray(fgmask).astype(bool)
+            rate = np.where(fg & (self.age >= p.min_age), np.float32(p.fg_alpha), rate)
+        r = rate[:, :, None]
+        d = f - self.mean
+        self.mean += r * d
+        # Variance of background pixels only (with the clipped residual): a passing object must
+        # not inflate the spread and blind the model.
+        d2 = np.minimum(d * d, (4.0 * p.init_std) ** 2)
+        self.var += r * (d2 - self.var)
+        np.maximum(self.var, p.min_std**2, out=self.var)
+        self.age = np.minimum(self.age + 1.0, p.max_age)
+
+    def background_image(self) -> Optional[np.ndarray]:
+        """The mean as uint8 ((H, W, 3) or (H, W)), or None before the first frame."""
+        if self.mean is None:
+            return None
+        img = np.clip(self.mean + 0.5, 0, 255).astype(np.uint8)
+        return img[:, :, 0] if img.shape[2] == 1 else img
+
+
+def _channels(a: np.ndarray, c: int) -> np.ndarray:
+    return a[:, :, None] if a.ndim == 2 and c == 1 else a
+
+
+def _warp(img: np.ndarray, matrix: np.ndarray, size: tuple, flags: int, border: int) -> np.ndarray:
+    out = cv2.warpPerspective(img, matrix, size, flags=flags, borderMode=border)
+    return _channels(out, img.shape[2] if img.ndim == 3 else 1)
+
+
+def flow_violation_map(
+    points: np.ndarray,
+    disp: np.ndarray,
+    matrix: np.ndarray,
+    *,
+    weights: np.ndarray,
+    shape: tuple,
+    threshold: float = 1.5,
+    cell: int = 8,
+    radius: int = 1,
+) -> np.ndarray:
+    """Where local motion disagrees with the camera's.
+
+    Parameters
+    ----------
+    points : (N, 2) float
+        Positions ``(x, y)`` in the *previous* frame.
+    disp : (N, 2) float
+        Their measured displacements to the current frame.
+    matrix : (3, 3) float64
+        The camera motion (previous -> current).
+    weights : (N,) float
+        Reliability of each measurement (0 = ignore).
+    shape : (H, W)
+        Size of the map, which is in *current*-frame coordinates (points are moved by ``disp``).
+    threshold : float
+        Disagreement (px) at which a vector counts half as violating (soft step, width 0.5 px).
+    cell : int
+        Votes are pooled in ``cell`` x ``cell`` cells ...
+    radius : int
+        ... and each cell also sees its neighbours within this many cells.
+
+    Returns
+    -------
+    (H, W) float32 in [0, 1]: weighted fraction of the local vectors that violate; 0.5 (no
+    opinion) where no vector reports.
+    """
+    h, w = int(shape[0]), int(shape[1])
+    if len(points) == 0:
+        return np.full((h, w), 0.5, np.float32)
+    pts = np.asarray(points, np.float64)
+    d = np.asarray(disp, np.float64)
+    predicted = apply_homography(matrix, pts) - pts
+    err = np.hypot(*(d - predicted).T)
+    viol = 1.0 / (1.0 + np.exp(-(err - threshold) / 0.25))
+    wt = np.asarray(weights, np.float64)
+    cur = pts + d
+    gw, gh = (w + cell - 1) // cell, (h + cell - 1) // cell
+    gx = np.clip((cur[:, 0] // cell).astype(np.intp), 0, gw - 1)
+    gy = np.clip((cur[:, 1] // cell).astype(np.intp), 0, gh - 1)
+    ok = (wt > 0) & np.isfinite(err)
+    num = np.zeros((gh, gw), np.float32)
+    den = np.zeros((gh, gw), np.float32)
+    np.add.at(num, (gy[ok], gx[ok]), (wt * viol)[ok])
+    np.add.at(den, (gy[ok], gx[ok]), wt[ok])
+    if radius > 0:
+        k = (2 * radius + 1, 2 * radius + 1)
+        num = cv2.boxFilter(num, -1, k, normalize=False, borderType=cv2.BORDER_CONSTANT)
+        den = cv2.boxFilter(den, -1, k, normalize=False, borderType=cv2.BORDER_CONSTANT)
+    frac = np.where(den > 1e-6, num / np.maximum(den, 1e-6), 0.5).astype(np.float32)
+    up = cv2.resize(frac, (gw * cell, gh * cell), interpolation=cv2.INTER_LINEAR)
+    return np.ascontiguousarray(up[:h, :w])
+
+
+def clean_mask(mask: np.ndarray, *, min_area: int = 30, close: int = 5) -> np.ndarray:
+    """Tidy a binary mask: 3x3 opening, ``close`` x ``close`` closing, drop small blobs.
+
+    Parameters
+    ----------
+    mask : (H, W) bool or uint8
+    min_area : int
+        Connected components (8-connected) smaller than this many pixels are removed.
+    close : int
+        Side of the closing kernel (0 or 1 = no closing).
+
+    Returns
+    -------
+    (H, W) uint8, 0/255
+    """
+    m = (np.asarray(mask) > 0).astype(np.uint8) * 255
+    m = cv2.morphologyEx(m, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
+    if close > 1:
+        m = cv2.morphologyEx(m, cv2.MORPH_CLOSE,
+                             cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (close, close)))
+    if min_area > 1 and m.any():
+        n, labels, stats, _ = cv2.connectedComponentsWithStats(m, connectivity=8)
+        small = stats[:, cv2.CC_STAT_AREA] < min_area
+        small[0] = False
+        if small.any():
+            m[small[labels]] = 0
+    return m
+
+
+def fuse_masks(
+    bg_score: np.ndarray,
+    violation: Optional[np.ndarray] = None,
+    *,
+    flow_boost: float = 0.0,
+    flow_damp: float = 0.0,
+    threshold: float = 1.0,
+    min_area: int = 30,
+    close: int = 5,
+) -> np.ndarray:
+    """Fuse background difference and flow violation into a clean 0/255 mask.
+
+    Parameters
+    ----------
+    bg_score : (H, W) float32
+        :meth:`CompensatedBackground.score` (1 = at the background decision threshold).
+    violation : (H, W) float32 in [0, 1], optional
+        :func:`flow_violation_map` (0.5 = no opinion).
+    flow_boost : float
+        Where the local motion violates the camera's, the score is multiplied by up to
+        ``1 + flow_boost`` (at ``violation == 1``).
+    flow_damp : float
+        Where it agrees, by down to ``1 - flow_damp`` (at ``violation == 0``): a difference
+        the motion explains (a ghost, a misregistered edge) counts less. Both 0 = background
+        model only.
+    threshold : float
+        Foreground where the fused score exceeds this.
+    min_area, close : see :func:`clean_mask`.
+
+    Returns
+    -------
+    (H, W) uint8, 0/255
+    """
+    score = bg_score
+    if violation is not None and (flow_boost != 0.0 or flow_damp != 0.0):
+        centred = 2.0 * violation - 1.0
+        gain = 1.0 + flow_boost * np.maximum(centred, 0.0) + flow_damp * np.minimum(centred, 0.0)
+        score = bg_score * np.maximum(gain, 0.0)
+    return clean_mask(score > threshold, min_area=min_area, close=close)

@@ -1,0 +1,240 @@
+"""The camera's global motion: a robust (RANSAC) fit to point correspondences.
+
+Correspondences come from the motion front end (gated-RBM patch displacements or Lucas-Kanade
+tracks); many of them are wrong (moving objects, flat or repetitive texture). RANSAC finds the
+transform most of the reliable ones agree on; a fit that is degenerate or rests on too little
+evidence is reported as not ``ok`` with a reason, so the caller can keep the previous motion and
+flag the frame instead of warping with garbage.
+
+Convention (docs/ARCHITECTURE.md): the matrix is ``(3, 3) float64`` and maps homogeneous pixel
+coordinates ``(x, y, 1)`` of the previous frame to the current frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional
+
+import cv2
+import numpy as np
+
+from bgsub.errors import InputError
+
+__all__ = [
+    "GlobalMotion",
+    "MODELS",
+    "fit_global_motion",
+    "apply_homography",
+    "corner_error",
+]
+
+#: Motion models, from the most to the least general.
+MODELS = ("homography", "affine", "similarity", "translation")
+
+_MIN_POINTS = {"homography": 4, "affine": 3, "similarity": 2, "translation": 1}
+
+
+@dataclass
+class GlobalMotion:
+    """A fitted camera motion.
+
+    Attributes
+    ----------
+    matrix : (3, 3) float64
+        Previous-frame pixel coordinates -> current-frame pixel coordinates (homogeneous).
+    inliers : (N,) bool
+        Which of the input correspondences agree with ``matrix`` (all False when not ``ok``).
+    ok : bool
+        False when the fit was refused; ``matrix`` is then the identity (or the caller's
+        fallback) and must not be trusted.
+    reason : str
+        ``"ok"`` or why the fit was refused (one short phrase, for ``last_status``).
+    """
+
+    matrix: np.ndarray
+    inliers: np.ndarray
+    ok: bool
+    reason: str = "ok"
+
+    @classmethod
+    def identity(cls, n: int = 0, *, reason: str = "ok", ok: bool = True) -> "GlobalMotion":
+        return cls(np.eye(3), np.zeros(n, bool), ok, reason)
+
+    @property
+    def n_inliers(self) -> int:
+        return int(np.count_nonzero(self.inliers))
+
+
+def apply_homography(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Map ``(N, 2)`` points through a ``(3, 3)`` homography; returns ``(N, 2)`` float64."""
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    h = np.asarray(matrix, dtype=np.float64)
+    xyw = pts @ h[:, :2].T + h[:, 2]
+    w = xyw[:, 2:3]
+    w = np.where(np.abs(w) < 1e-12, 1e-12, w)
+    return xyw[:, :2] / w
+
+
+def corner_error(estimate: np.ndarray, truth: np.ndarray, *, width: int, height: int) -> float:
+    """Mean distance in pixels between the frame corners mapped by two homographies."""
+    corners = np.array([[0, 0], [width - 1, 0], [0, height - 1], [width - 1, height - 1]], float)
+    diff = apply_homography(estimate, corners) - apply_homography(truth, corners)
+    return float(np.mean(np.hypot(diff[:, 0], diff[:, 1])))
+
+
+def _select(
+    src: np.ndarray, dst: np.ndarray, weights: Optional[np.ndarray], min_weight: float,
+    max_points: int,
+) -> np.ndarray:
+    """Indices of the correspondences handed to RANSAC: weight above ``min_weight``, the best
+    ``max_points`` of them (RANSAC's cost grows with the count, its accuracy barely does)."""
+    finite = np.isfinite(src).all(axis=1) & np.isfinite(dst).all(axis=1)
+    if weights is None:
+        idx = np.flatnonzero(finite)
+    else:
+        w = np.asarray(weights, dtype=np.float64)
+        idx = np.flatnonzero(finite & (w > min_weight))
+        if len(idx) > max_points:
+            idx = idx[np.argsort(-w[idx], kind="stable")[:max_points]]
+            idx.sort()
+    if weights is None and len(idx) > max_points:
+        # Evenly spread subset (deterministic) so every region keeps a say.
+        idx = idx[np.linspace(0, len(idx) - 1, max_points).astype(np.intp)]
+    return idx
+
+
+def _sane(matrix: np.ndarray, width: Optional[int], height: Optional[int],
+          max_corner_shift: float) -> str:
+    """Why ``matrix`` is not a plausible frame-to-frame camera motion, or ``""``."""
+    if not np.all(np.isfinite(matrix)):
+        return "degenerate fit (non-finite)"
+    a = matrix[:2, :2] / matrix[2, 2] if abs(matrix[2, 2]) > 1e-12 else None
+    if a is None:
+        return "degenerate fit"
+    det = float(np.linalg.det(a))
+    if not 0.5 < det < 2.0:
+        return f"degenerate fit (scale change {det:.2f})"
+    if width is not None and height is not None:
+        corners = np.array([[0, 0], [width - 1, 0], [0, height - 1], [width - 1, height - 1]],
+                           float)
+        hom = matrix @ np.c_[corners, np.ones(4)].T
+        if np.any(hom[2] <= 1e-6):
+            return "degenerate fit (frame folds over)"
+        moved = hom[:2] / hom[2] - corners.T
+        if np.max(np.hypot(moved[0], moved[1])) > max_corner_shift:
+            return "degenerate fit (implausibly large motion)"
+    return ""
+
+
+def fit_global_motion(
+    src: np.ndarray,
+    dst: np.ndarray,
+    *,
+    weights: Optional[np.ndarray] = None,
+    model: str = "homography",
+    threshold: float = 1.5,
+    min_weight: float = 0.0,
+    min_points: int = 12,
+    min_inlier_ratio: float = 0.2,
+    max_points: int = 800,
+    max_iters: int = 2000,
+    confidence: float = 0.995,
+    frame_size: Optional[tuple] = None,
+    max_corner_shift: float = 0.25,
+) -> GlobalMotion:
+    """Fit the camera motion ``dst ~ H src`` with RANSAC.
+
+    Parameters
+    ----------
+    src, dst : (N, 2) float
+        Corresponding points ``(x, y)`` in the previous and the current frame.
+    weights : (N,) float, optional
+        Reliability per correspondence (e.g. confidence x texture). Correspondences with weight
+        ``<= min_weight`` are dropped and at most ``max_points`` of the heaviest are used.
+    model : {"homography", "affine", "similarity", "translation"}
+        Degrees of freedom: 8, 6, 4 (rotation, uniform scale, shift) or 2.
+    threshold : float
+        RANSAC inlier distance in pixels (of ``dst``).
+    min_weight : float
+    min_points : int
+        Fewer usable correspondences than this -> not ``ok`` ("too few correspondences").
+    min_inlier_ratio : float
+        Fewer inliers than this fraction of the usable correspondences (and fewer than
+        ``min_points``) -> not ``ok``. RANSAC needs the camera's motion to be the largest
+        consistent group, not a majority: 0.2 tolerates 80% outliers.
+    max_points, max_iters, confidence : RANSAC budget.
+    frame_size : (width, height), optional
+        Enables the plausibility check of the corner displacements.
+    max_corner_shift : float
+        Largest corner displacement accepted, as a fraction of the frame diagonal.
+
+    Returns
+    -------
+    GlobalMotion
+        ``inliers`` is over all N input correspondences. When not ``ok`` the matrix is the
+        identity; callers usually substitute the previous frame's motion.
+    """
+    if model not in MODELS:
+        raise InputError(f"motion model must be one of {', '.join(MODELS)}, not {model!r}")
+    src = np.asarray(src, dtype=np.float32).reshape(-1, 2)
+    dst = np.asarray(dst, dtype=np.float32).reshape(-1, 2)
+    if src.shape != dst.shape:
+        raise InputError(f"src and dst differ in shape: {src.shape} and {dst.shape}")
+    n = len(src)
+    idx = _select(src, dst, weights, min_weight, max_points)
+    need = max(min_points, _MIN_POINTS[model])
+    if len(idx) < need:
+        return GlobalMotion.identity(n, ok=False, reason="too few correspondences")
+    s, d = src[idx], dst[idx]
+
+    if model == "translation":
+        matrix, mask = _fit_translation(s, d, threshold)
+    else:
+        try:
+            if model == "homography":
+                matrix, mask = cv2.findHomography(s, d, cv2.RANSAC, threshold,
+                                                  maxIters=max_iters, confidence=confidence)
+            elif model == "affine":
+                matrix, mask = cv2.estimateAffine2D(s, d, method=cv2.RANSAC,
+                                                    ransacReprojThreshold=threshold,
+                                                    maxIters=max_iters, confidence=confidence)
+            else:
+                matrix, mask = cv2.estimateAffinePartial2D(s, d, method=cv2.RANSAC,
+                                                           ransacReprojThreshold=threshold,
+                                                           maxIters=max_iters,
+                                                           confidence=confidence)
+        except cv2.error:
+            matrix, mask = None, None
+        if matrix is not None and matrix.shape == (2, 3):
+            matrix = np.vstack([matrix, [0.0, 0.0, 1.0]])
+    if matrix is None or mask is None:
+        return GlobalMotion.identity(n, ok=False, reason="degenerate fit")
+    matrix = np.asarray(matrix, dtype=np.float64)
+    matrix = matrix / matrix[2, 2] if abs(matrix[2, 2]) > 1e-12 else matrix
+    inl = np.zeros(n, bool)
+    inl[idx] = mask.ravel().astype(bool)
+    n_in = int(inl.sum())
+    if n_in < need or n_in < min_inlier_ratio * len(idx):
+        return GlobalMotion(np.eye(3), np.zeros(n, bool), False, "too few inliers")
+    if frame_size is not None:
+        w, h = frame_size
+        why = _sane(matrix, w, h, max_corner_shift * float(np.hypot(w, h)))
+    else:
+        why = _sane(matrix, None, None, np.inf)
+    if why:
+        return GlobalMotion(np.eye(3), np.zeros(n, bool), False, why)
+    return GlobalMotion(matrix, inl, True, "ok")
+
+
+def _fit_translation(s: np.ndarray, d: np.ndarray, threshold: float) -> tuple:
+    """Translation by consensus: every correspondence is a hypothesis (cheap, exhaustive on a
+    subsample), refined as the median shift of the inliers of the best one."""
+    shifts = (d - s).astype(np.float64)
+    cand = shifts[:: max(1, len(shifts) // 200)]
+    dist = np.hypot(shifts[None, :, 0] - cand[:, None, 0], shifts[None, :, 1] - cand[:, None, 1])
+    best = np.argmax((dist < threshold).sum(axis=1))
+    mask = dist[best] < threshold
+    t = np.median(shifts[mask], axis=0)
+    mask = np.hypot(*(shifts - t).T) < threshold
+    matrix = np.array([[1.0, 0.0, t[0]], [0.0, 1.0, t[1]], [0.0, 0.0, 1.0]])
+    return matrix, mask.astype(np.uint8)

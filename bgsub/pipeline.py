@@ -1,0 +1,558 @@
+"""The moving-camera engines: ``grbm`` (the default of ``bgsub run``) and ``compensated``.
+
+Both run the same per-frame steps and differ only in the motion front end, so comparing them
+isolates the motion estimator:
+
+1. the frame is converted to the working size (``work_width``; the mask is returned at the input
+   size);
+2. motion front end: ``grbm`` reads patch displacements off the gated RBM coarse to fine
+   (:func:`bgsub.flowfield.estimate_flow`); ``compensated`` tracks Shi-Tomasi corners with
+   pyramidal Lucas-Kanade and keeps the tracks that pass a forward-backward check;
+3. RANSAC fits the camera motion (:func:`bgsub.global_motion.fit_global_motion`); when the fit
+   is refused the previous frame's motion is reused and the frame is flagged in ``last_status``;
+4. the compensated background model is warped by it, compared with the frame, fused with the
+   flow-violation map and cleaned (:mod:`bgsub.foreground`), then updated.
+
+Frames that cannot be processed normally (blank, textureless, a scene cut) never raise: they
+return an empty mask (or, for a scene cut, restart the model) and say why in ``last_status``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Optional
+
+import cv2
+import numpy as np
+
+from bgsub.engines import Engine, Param, register_engine
+from bgsub.errors import InputError
+from bgsub.flowfield import estimate_flow
+from bgsub.foreground import (
+    BackgroundParams,
+    CompensatedBackground,
+    flow_violation_map,
+    fuse_masks,
+)
+from bgsub.global_motion import GlobalMotion, apply_homography, fit_global_motion
+
+__all__ = ["MovingCameraEngine", "GrbmEngine", "CompensatedEngine", "MotionResult"]
+
+
+@dataclass
+class MotionResult:
+    """What a motion front end found between the previous and the current frame.
+
+    Attributes
+    ----------
+    points : (N, 2) float32
+        Positions in the previous frame (working size).
+    disp : (N, 2) float32
+        Their measured displacements.
+    weights : (N,) float32
+        Reliability (0 = unusable).
+    motion : GlobalMotion
+        RANSAC fit over them.
+    violation_weights : (N,) float32, optional
+        Reliability of each vector as evidence for the flow-violation map, when it differs
+        from ``weights`` (the gated RBM's out-of-range readings are evidence of motion, but not
+        usable by RANSAC).
+    """
+
+    points: np.ndarray
+    disp: np.ndarray
+    weights: np.ndarray
+    motion: GlobalMotion
+    violation_weights: Optional[np.ndarray] = None
+
+
+def _check_image(image: Any) -> np.ndarray:
+    if not isinstance(image, np.ndarray) or image.dtype != np.uint8:
+        kind = getattr(image, "dtype", type(image).__name__)
+        raise InputError(f"engine input must be a uint8 numpy image, not {kind}")
+    if not (image.ndim == 2 or (image.ndim == 3 and image.shape[2] in (1, 3))):
+        raise InputError(
+            f"engine input must be (H, W) gray or (H, W, 3) BGR, not shape {tuple(image.shape)}")
+    if image.shape[0] == 0 or image.shape[1] == 0:
+        raise InputError(f"engine input is empty (shape {image.shape})")
+    return image[:, :, 0] if image.ndim == 3 and image.shape[2] == 1 else image
+
+
+class MovingCameraEngine(Engine):
+    """Shared per-frame logic; subclasses implement :meth:`_motion` (the front end).
+
+    Parameters (keyword-only; ``bgsub methods`` prints each one's meaning)
+    ----------
+    work_width : int
+        Frames wider than this are processed resized to it (0 = input size).
+    motion_model, ransac_threshold : RANSAC camera motion (:func:`fit_global_motion`).
+    background : BackgroundParams
+        The compensated background model's parameters.
+    flow_boost, flow_damp, violation_threshold : flow-violation fusion (:func:`fuse_masks`,
+        :func:`flow_violation_map`).
+    threshold, min_area, close : the final decision and clean-up.
+    min_contrast : float
+        Frames whose gray standard deviation is below this are "blank or textureless".
+    scene_cut, cut_support : float
+        A frame where more than ``scene_cut`` of the pixels with history differ from the
+        compensated background while fewer than ``cut_support`` of the motion vectors agree
+        with the fitted motion (or more than 80 % differ) restarts the model.
+    heal_below : float
+        Differences where the violation map is below this are learnt at the normal rate.
+
+    Attributes
+    ----------
+    last_status : str
+        ``"ok"`` or ``"fallback: <reason>"`` for the last frame.
+    """
+
+    name = "moving-camera"
+
+    def __init__(
+        self,
+        *,
+        work_width: int = 320,
+        motion_model: str = "homography",
+        ransac_threshold: float = 1.5,
+        background: Optional[BackgroundParams] = None,
+        flow_boost: float = 0.8,
+        flow_damp: float = 0.8,
+        violation_threshold: float = 1.5,
+        threshold: float = 1.0,
+        min_area: int = 30,
+        close: int = 9,
+        min_contrast: float = 4.0,
+        scene_cut: float = 0.5,
+        heal_below: float = 0.25,
+        cut_support: float = 0.35,
+    ) -> None:
+        self.work_width = int(work_width)
+        self.motion_model = motion_model
+        self.ransac_threshold = float(ransac_threshold)
+        self.bg = CompensatedBackground(background or BackgroundParams())
+        self.flow_boost = float(flow_boost)
+        self.flow_damp = float(flow_damp)
+        self.violation_threshold = float(violation_threshold)
+        self.threshold = float(threshold)
+        self.min_area = int(min_area)
+        self.close = int(close)
+        self.min_contrast = float(min_contrast)
+        self.scene_cut = float(scene_cut)
+        self.heal_below = float(heal_below)
+        self.cut_support = float(cut_support)
+        self.last_status = "ok"
+        self._prev_gray: Optional[np.ndarray] = None  # (h, w) uint8 working size
+        self._prev_motion: Optional[np.ndarray] = None  # last good (3, 3)
+        self._last: Optional[MotionResult] = None
+        self._last_frame: Optional[np.ndarray] = None
+        self._last_mask: Optional[np.ndarray] = None
+        self._in_shape: Optional[tuple] = None
+
+    # ------------------------------------------------------------------ sizes
+
+    def _work_size(self, w: int, h: int) -> tuple:
+        if self.work_width <= 0 or w <= self.work_width:
+            return w, h
+        return self.work_width, max(1, int(round(h * self.work_width / w)))
+
+    def _to_work(self, image: np.ndarray) -> np.ndarray:
+        h, w = image.shape[:2]
+        ww, wh = self._work_size(w, h)
+        if (ww, wh) == (w, h):
+            return image
+        return cv2.resize(image, (ww, wh), interpolation=cv2.INTER_AREA)
+
+    def _to_input(self, mask: np.ndarray) -> np.ndarray:
+        h, w = self._in_shape
+        if mask.shape == (h, w):
+            return mask
+        up = cv2.resize(mask, (w, h), interpolation=cv2.INTER_LINEAR)
+        return np.where(up > 127, 255, 0).astype(np.uint8)
+
+    # ------------------------------------------------------------------ the front end
+
+    def _motion(self, prev_gray: np.ndarray, gray: np.ndarray,
+                prior: Optional[np.ndarray]) -> MotionResult:
+        raise NotImplementedError
+
+    def _fit(self, points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
+             shape: tuple) -> GlobalMotion:
+        return fit_global_motion(points, points + disp, weights=weights, model=self.motion_model,
+                                 threshold=self.ransac_threshold,
+                                 frame_size=(shape[1], shape[0]))
+
+    # ------------------------------------------------------------------ Engine API
+
+    def apply(self, image: np.ndarray, fgmask: Optional[np.ndarray] = None,
+              learning_rate: float = -1.0) -> np.ndarray:
+        image = _check_image(image)
+        rate = float(learning_rate)
+        if not np.isfinite(rate) or rate > 1.0:
+            raise InputError(f"learning_rate must be in [0, 1] or negative (automatic), not {rate}")
+        if self._in_shape is not None and image.shape[:2] != self._in_shape:
+            raise InputError(f"frame size changed from {self._in_shape[1]}x{self._in_shape[0]} "
+                             f"to {image.shape[1]}x{image.shape[0]}")
+        self._in_shape = image.shape[:2]
+        work = self._to_work(image)
+        gray = work if work.ndim == 2 else cv2.cvtColor(work, cv2.COLOR_BGR2GRAY)
+        mask = self._step(work, gray, rate)
+        self._last_frame, self._last_mask = work, mask
+        out = self._to_input(mask)
+        if fgmask is not None:
+            if not isinstance(fgmask, np.ndarray) or fgmask.shape != out.shape or fgmask.dtype != np.uint8:
+                raise InputError(f"fgmask must be a {out.shape} uint8 array")
+            fgmask[...] = out
+            return fgmask
+        return out
+
+    def _step(self, work: np.ndarray, gray: np.ndarray, rate: float) -> np.ndarray:
+        empty = np.zeros(gray.shape, np.uint8)
+        self._last = None
+        if float(cv2.meanStdDev(gray)[1][0, 0]) < self.min_contrast:
+            # Blank or textureless frame: no motion can be measured; keep the model as it is.
+            self.last_status = "fallback: blank or textureless frame"
+            return empty
+        if self._prev_gray is None:
+            self._restart(work, gray)
+            self.last_status = "ok"
+            return empty
+
+        result = self._motion(self._prev_gray, gray, self._prev_motion)
+        self._last = result
+        status = "ok"
+        matrix = result.motion.matrix
+        if not result.motion.ok:
+            status = f"fallback: {result.motion.reason}"
+            matrix = self._prev_motion if self._prev_motion is not None else np.eye(3)
+        self.bg.warp(matrix)
+        score = self.bg.score(work)
+        # Scene cut: after compensation most of the frame still differs (a new shot) and the
+        # motion estimate has little support (a new shot has no consistent motion), or nearly
+        # all of it differs whatever the motion estimate says.
+        young = self.bg.age < self.bg.params.min_age
+        old = max(int(np.count_nonzero(~young)), 1)
+        used = max(int(np.count_nonzero(result.weights > 0)), 1)
+        support = result.motion.n_inliers / used if result.motion.ok else 0.0
+        changed = np.count_nonzero(score > 1.0) / old
+        if (changed > self.scene_cut and support < self.cut_support) or changed > 0.8:
+            self._restart(work, gray)
+            self.last_status = "fallback: scene cut"
+            return empty
+        violation = None
+        if self.flow_boost != 0.0 or self.flow_damp != 0.0:
+            vw = result.weights if result.violation_weights is None else result.violation_weights
+            violation = flow_violation_map(result.points, result.disp, matrix,
+                                           weights=vw, shape=gray.shape,
+                                           threshold=self.violation_threshold)
+        mask = fuse_masks(score, violation, flow_boost=self.flow_boost, flow_damp=self.flow_damp,
+                          threshold=self.threshold, min_area=self.min_area, close=self.close)
+        learn_slowly = mask > 0
+        if violation is not None:
+            # Where the local motion confidently agrees with the camera's, a background
+            # difference is a ghost (background uncovered since the model learnt an object
+            # there): let it heal at the normal rate.
+            learn_slowly &= ~(violation < self.heal_below)
+        self.bg.update(work, learn_slowly, rate)
+        self._prev_gray = gray
+        if result.motion.ok:
+            self._prev_motion = result.motion.matrix
+        self.last_status = status
+        return mask
+
+    def _restart(self, work: np.ndarray, gray: np.ndarray) -> None:
+        self.bg.reset(work)
+        self.bg.update(work)
+        self._prev_gray = gray
+        self._prev_motion = None
+
+    def get_background_image(self) -> Optional[np.ndarray]:
+        img = self.bg.background_image()
+        if img is None or self._in_shape is None:
+            return img
+        h, w = self._in_shape
+        return cv2.resize(img, (w, h), interpolation=cv2.INTER_LINEAR)
+
+    def debug_image(self) -> Optional[np.ndarray]:
+        """The last frame (working size, scaled to the input) with the motion vectors drawn:
+        green = RANSAC inliers, red = outliers, blue = the camera motion on a coarse grid; the
+        foreground mask tints the frame magenta. ``(H, W, 3) uint8``, None before two frames."""
+        if self._last_frame is None or self._last is None:
+            return None
+        frame = self._last_frame
+        canvas = cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR) if frame.ndim == 2 else frame.copy()
+        canvas = (canvas * 0.6).astype(np.uint8)
+        colour = self._flow_colour(canvas.shape[:2])
+        if colour is not None:
+            canvas = cv2.addWeighted(canvas, 0.5, colour, 0.5, 0.0)
+        if self._last_mask is not None:
+            canvas[self._last_mask > 0] = (0.5 * canvas[self._last_mask > 0]
+                                           + np.array([127, 0, 127])).astype(np.uint8)
+        res = self._last
+        h, w = canvas.shape[:2]
+        scale = 3.0
+        try:
+            from bgsub.flowio import draw_flow_arrows
+        except ImportError:  # flowio is optional; without it only the mask tint is drawn
+            return self._to_input_image(canvas)
+        use = res.weights > 0
+        inl = res.motion.inliers if len(res.motion.inliers) == len(res.points) else np.zeros(len(res.points), bool)
+        # Arrows end where the point went (drawn from the previous position).
+        canvas = draw_flow_arrows(canvas, res.points[use & ~inl], res.disp[use & ~inl],
+                                  scale=scale, color=(0, 0, 255), dot_color=None)
+        canvas = draw_flow_arrows(canvas, res.points[use & inl], res.disp[use & inl],
+                                  scale=scale, color=(0, 255, 0), dot_color=None)
+        step = max(16, w // 10)
+        ys, xs = np.mgrid[step // 2:h:step, step // 2:w:step]
+        grid = np.stack([xs.ravel(), ys.ravel()], 1).astype(np.float64)
+        cam = apply_homography(res.motion.matrix if res.motion.ok else np.eye(3), grid) - grid
+        canvas = draw_flow_arrows(canvas, grid, cam, scale=scale, color=(255, 128, 0), thickness=2,
+                                  dot_color=(255, 128, 0))
+        cv2.putText(canvas, self.last_status[:40], (4, 14), cv2.FONT_HERSHEY_SIMPLEX, 0.4,
+                    (255, 255, 255), 1, cv2.LINE_AA)
+        return self._to_input_image(canvas)
+
+    def _flow_colour(self, shape: tuple) -> Optional[np.ndarray]:
+        """A colour-coded (Middlebury wheel) picture of the local motion, or None."""
+        return None
+
+    def _to_input_image(self, img: np.ndarray) -> np.ndarray:
+        h, w = self._in_shape
+        if img.shape[:2] == (h, w):
+            return img
+        return cv2.resize(img, (w, h), interpolation=cv2.INTER_LINEAR)
+
+
+class CompensatedEngine(MovingCameraEngine):
+    """Classical front end: Shi-Tomasi corners + pyramidal Lucas-Kanade + forward-backward check."""
+
+    name = "compensated"
+
+    def __init__(self, *, max_corners: int = 400, corner_quality: float = 0.01,
+                 min_distance: int = 8, lk_window: int = 21, lk_levels: int = 3,
+                 fb_threshold: float = 1.0, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.max_corners = int(max_corners)
+        self.corner_quality = float(corner_quality)
+        self.min_distance = int(min_distance)
+        self.lk_window = int(lk_window)
+        self.lk_levels = int(lk_levels)
+        self.fb_threshold = float(fb_threshold)
+
+    def _motion(self, prev_gray: np.ndarray, gray: np.ndarray,
+                prior: Optional[np.ndarray]) -> MotionResult:
+        pts = cv2.goodFeaturesToTrack(prev_gray, maxCorners=self.max_corners,
+                                      qualityLevel=self.corner_quality,
+                                      minDistance=self.min_distance, blockSize=7)
+        if pts is None or len(pts) < 4:
+            empty = np.zeros((0, 2), np.float32)
+            return MotionResult(empty, empty, np.zeros(0, np.float32),
+                                GlobalMotion.identity(0, ok=False, reason="too few corners"))
+        pts = pts.reshape(-1, 1, 2).astype(np.float32)
+        win = (self.lk_window, self.lk_window)
+        crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 20, 0.03)
+        flags = 0
+        guess = None
+        if prior is not None:
+            # Start the tracker where the camera's last motion predicts: fast pans stay in range.
+            guess = apply_homography(prior, pts.reshape(-1, 2)).astype(np.float32).reshape(-1, 1, 2)
+            flags = cv2.OPTFLOW_USE_INITIAL_FLOW
+        nxt, st, _ = cv2.calcOpticalFlowPyrLK(prev_gray, gray, pts, guess, winSize=win,
+                                              maxLevel=self.lk_levels, criteria=crit, flags=flags)
+        back, st2, _ = cv2.calcOpticalFlowPyrLK(gray, prev_gray, nxt, pts.copy(), winSize=win,
+                                                maxLevel=self.lk_levels, criteria=crit,
+                                                flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
+        fb = np.hypot(*(back - pts).reshape(-1, 2).T)
+        good = (st.ravel() == 1) & (st2.ravel() == 1) & (fb < self.fb_threshold)
+        p = pts.reshape(-1, 2)
+        d = (nxt - pts).reshape(-1, 2)
+        weights = good.astype(np.float32)
+        motion = self._fit(p, d, weights, gray.shape)
+        return MotionResult(p, d, weights, motion)
+
+
+class GrbmEngine(MovingCameraEngine):
+    """Gated-RBM front end: coarse-to-fine patch displacements from the factored 3-way RBM."""
+
+    name = "grbm"
+
+    def __init__(self, *, model: Any = "natural", stride: int = 8, levels: int = 0,
+                 max_motion: float = 32.0, min_texture: float = 0.02, max_patches: int = 0,
+                 iterations: int = 2, retry_below: float = 0.6, prior_levels: int = 0,
+                 search: int = 0, coarse_iterations: int = 1, finest: int = 0,
+                 **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        from bgsub.rbm import load_model
+
+        # A name or path, a GatedRBM, or any patch-motion model with the same contract (see
+        # bgsub.flowfield.patch_motion).
+        self.model = model if hasattr(model, "patch_motion") else load_model(model)
+        self.stride = int(stride)
+        self.levels = int(levels) if levels > 0 else None
+        self.max_motion = float(max_motion)
+        self.min_texture = float(min_texture)
+        self.max_patches = int(max_patches) if max_patches > 0 else None
+        self.iterations = max(1, int(iterations))
+        self.retry_below = float(retry_below)
+        self.prior_levels = int(prior_levels)
+        self.search = max(0, int(search))
+        self.coarse_iterations = max(1, int(coarse_iterations))
+        self.finest = max(0, int(finest))
+
+    def _flow(self, prev_gray: np.ndarray, gray: np.ndarray, prior: Optional[np.ndarray]):
+        levels = self.levels
+        if prior is not None and levels is None:
+            # The previous frame's motion predicts this one to within a few pixels: two levels
+            # cover that; a camera that changes course fails the support test and is retried
+            # with the full pyramid.
+            levels = self.prior_levels if self.prior_levels > 0 else None
+        return estimate_flow(prev_gray, gray, model=self.model, stride=self.stride,
+                             levels=levels, max_motion=self.max_motion, prior=prior,
+                             min_texture=self.min_texture, max_patches=self.max_patches,
+                             iterations=self.iterations, search=self.search,
+                             coarse_iterations=self.coarse_iterations, finest=self.finest)
+
+    def _flow_colour(self, shape: tuple) -> Optional[np.ndarray]:
+        flow = getattr(self, "_last_flow", None)
+        if flow is None:
+            return None
+        try:
+            from bgsub.flowio import flow_to_color
+        except ImportError:
+            return None
+        from bgsub.flowfield import dense_from_patches
+
+        dense = dense_from_patches(flow, shape=shape, patch_size=int(self.model.patch_size))
+        return flow_to_color(dense, max_magnitude=max(4.0, self.max_motion / 4))
+
+    @staticmethod
+    def _vweights(flow) -> np.ndarray:
+        """Violation evidence: valid readings, plus textured patches whose residual is beyond
+        the model's range (they moved relative to the camera by more than it can see)."""
+        w = flow.weights.copy()
+        if flow.beyond is not None:
+            w[flow.beyond] = flow.texture[flow.beyond]
+        return w
+
+    def _motion(self, prev_gray: np.ndarray, gray: np.ndarray,
+                prior: Optional[np.ndarray]) -> MotionResult:
+        flow = self._flow(prev_gray, gray, prior)
+        self._last_flow = flow
+        weights = flow.weights
+        motion = self._fit(flow.centres, flow.disp, weights, gray.shape)
+        first = MotionResult(flow.centres, flow.disp, weights, motion, self._vweights(flow))
+        support = motion.n_inliers / max(int(np.count_nonzero(weights > 0)), 1)
+        reduced = self.levels is None and self.prior_levels > 0
+        if prior is None or not reduced or (motion.ok and support >= self.retry_below):
+            return first
+        # The prior may be wrong (the camera changed course): also try from scratch and keep
+        # the reading more patches agree with.
+        flow = self._flow(prev_gray, gray, None)
+        weights = flow.weights
+        second = MotionResult(flow.centres, flow.disp, weights,
+                              self._fit(flow.centres, flow.disp, weights, gray.shape),
+                              self._vweights(flow))
+        if second.motion.ok and (not motion.ok or second.motion.n_inliers > motion.n_inliers):
+            self._last_flow = flow
+            return second
+        return first
+
+
+# ---------------------------------------------------------------------- registration
+
+_COMMON = {
+    "work_width": Param(320, "process frames resized to this width (0 = input size); the mask "
+                             "is returned at the input size"),
+    "motion_model": Param("homography", "camera motion model fitted by RANSAC",
+                          choices=("homography", "affine", "similarity", "translation")),
+    "ransac_threshold": Param(1.5, "RANSAC inlier distance in working-size pixels"),
+    "alpha": Param(0.1, "background learning rate of pixels with a long history"),
+    "fg_alpha": Param(0.01, "learning rate of pixels called foreground (lets ghosts fade)"),
+    "k_sigma": Param(2.0, "foreground beyond this many background standard deviations ..."),
+    "min_diff": Param(10.0, "... and this many gray levels (0-255)"),
+    "envelope": Param(1, "a pixel is compared with the background's min/max over this "
+                         "neighbourhood (3 tolerates a 1-px misregistration)"),
+    "min_age": Param(1, "frames of history a pixel needs before it can be foreground"),
+    "flow_boost": Param(0.8, "where local motion violates the camera's, the background "
+                             "difference is multiplied by up to 1 + this"),
+    "flow_damp": Param(0.8, "where local motion agrees with the camera's, it is multiplied by "
+                            "down to 1 - this (0 and flow_boost 0 = background model only)"),
+    "violation_threshold": Param(1.5, "disagreement with the camera motion (px) that counts as "
+                                      "a violation"),
+    "min_area": Param(30, "blobs smaller than this (working-size pixels) are dropped"),
+    "close": Param(9, "morphological closing size (0 = none)"),
+    "threshold": Param(1.0, "foreground where the fused score exceeds this (lower = more "
+                            "foreground)"),
+    "heal_below": Param(0.25, "background differences where the local motion agrees with the "
+                              "camera (violation below this) are learnt at the normal rate "
+                              "(ghost healing)"),
+}
+
+
+def _split(kwargs: dict) -> dict:
+    bg = BackgroundParams(alpha=kwargs.pop("alpha"), fg_alpha=kwargs.pop("fg_alpha"),
+                          k_sigma=kwargs.pop("k_sigma"), min_diff=kwargs.pop("min_diff"),
+                          envelope=kwargs.pop("envelope"), min_age=kwargs.pop("min_age"))
+    kwargs["background"] = bg
+    return kwargs
+
+
+def _with_defaults(common: dict, **overrides: Any) -> dict:
+    """``common`` with some defaults replaced (same help text)."""
+    out = dict(common)
+    for name, value in overrides.items():
+        p = out[name]
+        out[name] = Param(value, p.help, p.choices)
+    return out
+
+
+# The gated RBM's readings are less precise than tracked corners (0.1-0.5 px vs < 0.1 px on
+# generated scenes) and its flow-violation evidence is dense but noisier: its engine fits the
+# 4-parameter similarity (more stable than a homography on noisy vectors) and leans on
+# violation evidence to boost rather than to damp. Tuned on the real set (docs/bench-pipeline.md).
+_GRBM_COMMON = _with_defaults(_COMMON, motion_model="similarity", flow_boost=1.5, flow_damp=0.2)
+
+
+@register_engine(
+    "grbm",
+    "moving camera: gated-RBM patch motion (coarse to fine) + RANSAC camera motion + "
+    "compensated background model (the paper's method)",
+    params={
+        "model": Param("natural", "gated RBM: a shipped model name or an .npz path"),
+        "stride": Param(8, "patch grid step in working-size pixels"),
+        "levels": Param(0, "pyramid levels (0 = enough for max_motion)"),
+        "max_motion": Param(32.0, "largest camera motion per frame to plan for (working px)"),
+        "min_texture": Param(0.02, "patches with less texture (0-1) are not evaluated"),
+        "max_patches": Param(0, "evaluate at most this many patches per level (0 = all)"),
+        "iterations": Param(2, "readouts at the finest level, each re-warped by the last fit"),
+        "finest": Param(0, "pyramid level of the final readout (1 = half the working size: "
+                           "faster, and better on blurry footage)"),
+        "coarse_iterations": Param(1, "readouts at each coarser pyramid level"),
+        "search": Param(0, "also start the coarsest level from a (2 search + 1)^2 grid of "
+                           "shifts (shaking cameras); 0 = prior and identity only"),
+        "prior_levels": Param(0, "pyramid levels used when the previous frame's motion "
+                                 "predicts this one (0 = always the full pyramid)"),
+        "retry_below": Param(0.6, "with prior_levels > 0: when fewer than this fraction of the "
+                                  "patches agree with the motion found from the previous "
+                                  "frame's, also search with the full pyramid"),
+        **_GRBM_COMMON,
+    },
+)
+def _make_grbm(**kwargs: Any) -> Engine:
+    return GrbmEngine(**_split(kwargs))
+
+
+@register_engine(
+    "compensated",
+    "moving camera: Lucas-Kanade corner tracks + RANSAC camera motion + compensated background "
+    "model (classical baseline of grbm)",
+    params={
+        "max_corners": Param(400, "Shi-Tomasi corners tracked per frame"),
+        "lk_window": Param(21, "Lucas-Kanade window side (px)"),
+        "lk_levels": Param(3, "Lucas-Kanade pyramid levels above the base"),
+        "fb_threshold": Param(1.0, "forward-backward tracking error (px) above which a track "
+                                   "is dropped"),
+        **_COMMON,
+    },
+)
+def _make_compensated(**kwargs: Any) -> Engine:
+    return CompensatedEngine(**_split(kwargs))

@@ -1,0 +1,97 @@
+"""bgsub.foreground: the camera-compensated background model, flow violation, fusion."""
+
+import cv2
+import numpy as np
+
+from bgsub.foreground import (
+    BackgroundParams,
+    CompensatedBackground,
+    clean_mask,
+    flow_violation_map,
+    fuse_masks,
+)
+
+
+def _scene(h=120, w=160, seed=0):
+    rng = np.random.default_rng(seed)
+    small = rng.integers(0, 256, (h // 6 + 4, w // 6 + 4, 3)).astype(np.uint8)
+    return cv2.resize(small, (w + 60, h + 60), interpolation=cv2.INTER_CUBIC)
+
+
+def _view(world, x0, h=120, w=160):
+    m = np.float32([[1, 0, -x0], [0, 1, -10]])
+    return cv2.warpAffine(world, m, (w, h), flags=cv2.INTER_LINEAR)
+
+
+def test_pure_pan_gives_no_foreground():
+    world = _scene()
+    bg = CompensatedBackground()
+    masks = []
+    for k in range(12):
+        frame = _view(world, 3.0 * k)
+        if k == 0:
+            bg.reset(frame)
+            bg.update(frame)
+            continue
+        h = np.array([[1, 0, -3.0], [0, 1, 0], [0, 0, 1]])  # content moves 3 px left
+        bg.warp(h)
+        mask = fuse_masks(bg.score(frame))
+        bg.update(frame, mask)
+        masks.append(mask)
+    assert max(np.count_nonzero(m) for m in masks) < 0.005 * masks[0].size
+
+
+def test_uncovered_border_has_no_history_and_is_not_foreground():
+    bg = CompensatedBackground(BackgroundParams())
+    first = np.full((50, 60, 3), 100, np.uint8)
+    bg.reset(first)
+    bg.update(first)
+    bg.warp(np.array([[1, 0, -10.0], [0, 1, 0], [0, 0, 1]]))
+    assert np.all(bg.age[:, -9:] == 0) and np.all(bg.age[:, :40] >= 1)
+    new = first.copy()
+    new[:, -10:] = 250  # new content scrolling in: different, but no history there
+    assert np.all(bg.score(new)[:, -9:] == 0)
+
+
+def test_object_on_static_background_is_found():
+    world = _scene()
+    frame0 = _view(world, 0)
+    bg = CompensatedBackground()
+    bg.reset(frame0)
+    bg.update(frame0)
+    frame = frame0.copy()
+    frame[40:70, 50:90] = (0, 0, 255)
+    mask = fuse_masks(bg.score(frame))
+    assert mask.dtype == np.uint8 and set(np.unique(mask)) <= {0, 255}
+    inside = mask[45:65, 55:85] > 0
+    assert inside.mean() > 0.95
+    assert np.count_nonzero(mask) < 1.3 * 30 * 40
+
+
+def test_flow_violation_marks_disagreeing_vectors():
+    ys, xs = np.mgrid[4:100:8, 4:100:8]
+    pts = np.stack([xs.ravel(), ys.ravel()], 1).astype(np.float32)
+    cam = np.array([[1, 0, 2.0], [0, 1, 0], [0, 0, 1]])
+    disp = np.tile([2.0, 0.0], (len(pts), 1))
+    moving = (pts[:, 0] > 60) & (pts[:, 1] > 60)
+    disp[moving] = [-3.0, 1.0]
+    vmap = flow_violation_map(pts, disp, cam, weights=np.ones(len(pts)), shape=(100, 100))
+    assert vmap.shape == (100, 100) and vmap.dtype == np.float32
+    assert vmap[85, 85] > 0.9
+    assert vmap[20, 20] < 0.1
+
+
+def test_fusion_damps_agreeing_and_boosts_violating_regions():
+    score = np.full((40, 40), 1.2, np.float32)
+    violation = np.zeros((40, 40), np.float32)
+    violation[:, 20:] = 1.0
+    mask = fuse_masks(score, violation, flow_boost=0.8, flow_damp=0.8, min_area=1, close=0)
+    assert not mask[:, :18].any() and mask[:, 22:].all()
+
+
+def test_clean_mask_drops_small_blobs():
+    m = np.zeros((50, 50), np.uint8)
+    m[5:8, 5:8] = 255  # 9 px speck
+    m[20:40, 20:40] = 255
+    out = clean_mask(m, min_area=30)
+    assert out[30, 30] == 255 and out[6, 6] == 0

@@ -1,0 +1,68 @@
+"""bgsub.global_motion: RANSAC camera motion with outliers and refusals."""
+
+import numpy as np
+import pytest
+
+from bgsub.global_motion import apply_homography, corner_error, fit_global_motion
+
+
+def _true_h():
+    a = np.deg2rad(1.5)
+    return np.array([[1.01 * np.cos(a), -np.sin(a), 6.0],
+                     [np.sin(a), 1.01 * np.cos(a), -3.0],
+                     [2e-5, -1e-5, 1.0]])
+
+
+@pytest.mark.parametrize("model", ["homography", "affine", "similarity"])
+def test_recovers_motion_with_half_outliers(model):
+    rng = np.random.default_rng(1)
+    h = _true_h() if model == "homography" else np.vstack([_true_h()[:2], [0, 0, 1]])
+    if model == "similarity":
+        h = np.array([[0.99, -0.02, 4.0], [0.02, 0.99, 2.0], [0, 0, 1.0]])
+    src = rng.uniform([0, 0], [320, 240], (400, 2))
+    dst = apply_homography(h, src) + rng.normal(0, 0.2, (400, 2))
+    bad = rng.random(400) < 0.5
+    dst[bad] = rng.uniform([0, 0], [320, 240], (bad.sum(), 2))
+    gm = fit_global_motion(src, dst, model=model, frame_size=(320, 240))
+    assert gm.ok, gm.reason
+    assert corner_error(gm.matrix, h, width=320, height=240) < 0.5
+    # Inliers are (mostly) the true correspondences.
+    assert np.mean(gm.inliers[~bad]) > 0.9 and np.mean(gm.inliers[bad]) < 0.05
+
+
+def test_weights_drop_unreliable_points():
+    rng = np.random.default_rng(2)
+    src = rng.uniform([0, 0], [320, 240], (200, 2))
+    dst = src + [3.0, -1.0]
+    # 70% wrong, all with weight 0: only the reliable 30% are used.
+    bad = np.arange(200) < 140
+    dst[bad] = src[bad] + rng.uniform(-8, 8, (140, 2))
+    w = np.where(bad, 0.0, 1.0)
+    gm = fit_global_motion(src, dst, weights=w, model="affine")
+    assert gm.ok
+    np.testing.assert_allclose(gm.matrix[:2, 2], [3.0, -1.0], atol=0.05)
+    assert not gm.inliers[bad].any()
+
+
+def test_too_few_points_is_refused_not_garbage():
+    src = np.array([[0, 0], [10, 0], [0, 10]], float)
+    gm = fit_global_motion(src, src + 1.0)
+    assert not gm.ok and "too few" in gm.reason
+    np.testing.assert_array_equal(gm.matrix, np.eye(3))
+
+
+def test_implausible_motion_is_refused():
+    rng = np.random.default_rng(3)
+    src = rng.uniform([0, 0], [320, 240], (100, 2))
+    gm = fit_global_motion(src, src * 3.0, model="affine", frame_size=(320, 240))
+    assert not gm.ok and "degenerate" in gm.reason
+
+
+def test_translation_model():
+    rng = np.random.default_rng(4)
+    src = rng.uniform([0, 0], [320, 240], (100, 2))
+    dst = src + [-7.5, 2.25]
+    dst[:40] += rng.uniform(-20, 20, (40, 2))
+    gm = fit_global_motion(src, dst, model="translation")
+    assert gm.ok
+    np.testing.assert_allclose(gm.matrix[:2, 2], [-7.5, 2.25], atol=1e-6)

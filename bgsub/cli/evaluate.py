@@ -1,0 +1,119 @@
+"""``bgsub eval``: CDnet 2014 metrics of predicted masks against ground truth."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from bgsub.errors import InputError, OutputError
+
+_DESCRIPTION = """\
+Score predicted foreground masks against CDnet 2014 ground truth: Recall, Specificity, FPR,
+FNR, PWC, Precision and F-measure, with the TP/FP/FN/TN pixel counts.
+
+PRED is a folder of binNNNNNN.png masks or a mask video (frame 1 = bin000001.png = gt000001.png);
+a pixel is foreground when > 127. GROUNDTRUTH is a CDnet sequence folder (groundtruth/gtNNNNNN.png,
+optional temporalROI.txt and ROI.bmp), or a dataset root holding several sequences at any depth;
+then PRED is a folder holding one prediction per sequence (NAME/ or NAME.mkv, or the same
+relative path as in the dataset, e.g. cameraJitter/traffic/), and the results are averaged the
+CDnet way: a category is the mean of its sequences, overall is the mean of the categories.
+The category of root/CATEGORY/NAME is CATEGORY; of root/NAME, the part of NAME before its last
+'_' (BMS26_cars1 -> BMS26).
+
+Only frames inside the temporal ROI count, and only pixels inside ROI.bmp whose label is 0 or 50
+(negative) or 255 (positive); 85 (outside ROI) and 170 (unknown) are ignored; other labels are an
+error. A frame to evaluate without a prediction is an error unless --allow-missing. Metrics with
+a zero denominator are undefined (n/a, JSON null)."""
+
+_EPILOG = """\
+examples:
+  bgsub eval masks/ data/cameraJitter/traffic --no-roi-bmp     one sequence
+  bgsub eval masks.mkv scenes/static_s1 --skip-first           a mask video, frame 1 left out
+  bgsub eval results/ scenes/ --csv scores.csv                 every sequence under scenes/
+  bgsub eval results/ scenes/ --json > scores.json             machine-readable
+
+exit status: 0 evaluated, 2 bad input (missing frames, size mismatch, bad ground truth)
+"""
+
+
+def register(subparsers: Any) -> None:
+    parser = subparsers.add_parser(
+        "eval",
+        help="CDnet 2014 metrics of masks against ground truth",
+        description=_DESCRIPTION,
+        epilog=_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("pred", metavar="PRED",
+                        help="folder of binNNNNNN.png masks or mask video (a folder of those "
+                             "for a dataset)")
+    parser.add_argument("groundtruth", metavar="GROUNDTRUTH",
+                        help="CDnet sequence folder or dataset root")
+    out = parser.add_argument_group("output")
+    out.add_argument("--json", action="store_true", help="print the results as JSON")
+    out.add_argument("--csv", metavar="FILE", default=None,
+                     help="also write one CSV row per sequence, category and overall ('-': "
+                          "print the CSV instead of the table)")
+    out.add_argument("--overwrite", action="store_true", help="replace an existing --csv file")
+    out.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    frames = parser.add_argument_group("what counts")
+    frames.add_argument("--no-roi-bmp", action="store_true",
+                        help="ignore ROI.bmp (e.g. CDnet traffic's, which has the wrong size); "
+                             "label 85 still marks outside-ROI pixels")
+    frames.add_argument("--skip-first", action="store_true",
+                        help="leave out frame 1 (a background model has seen nothing before "
+                             "it); no effect when the temporal ROI starts later")
+    frames.add_argument("--first-frame", type=int, default=None, metavar="N",
+                        help="evaluate frames numbered N and later (1-based, like gtNNNNNN)")
+    frames.add_argument("--last-frame", type=int, default=None, metavar="N",
+                        help="evaluate frames numbered up to N (1-based, inclusive)")
+    frames.add_argument("--allow-missing", action="store_true",
+                        help="count frames (or sequences) without a prediction as all "
+                             "background instead of failing")
+    parser.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from bgsub.evaluation import evaluate, format_csv, format_table
+
+    if args.json and args.csv == "-":
+        raise InputError("--json and --csv - both print to stdout: choose one")
+    for option in ("first_frame", "last_frame"):
+        value = getattr(args, option)
+        if value is not None and value < 1:
+            raise InputError(f"--{option.replace('_', '-')} takes a frame number >= 1, "
+                             f"not {value}")
+    csv_path = None
+    if args.csv not in (None, "-"):
+        csv_path = Path(args.csv)
+        if csv_path.exists() and not args.overwrite:
+            raise OutputError(f"{csv_path} exists (use --overwrite to replace it)")
+        if not csv_path.parent.is_dir():
+            raise OutputError(f"cannot write {csv_path}: folder {csv_path.parent} does not exist")
+
+    result = evaluate(
+        args.pred, args.groundtruth,
+        ignore_roi_bmp=args.no_roi_bmp, allow_missing=args.allow_missing,
+        skip_first=args.skip_first, first_frame=args.first_frame, last_frame=args.last_frame,
+        quiet=args.quiet,
+    )
+
+    if csv_path is not None:
+        try:
+            csv_path.write_text(format_csv(result))
+        except OSError as err:
+            raise OutputError(f"cannot write {csv_path}: {err.strerror}") from None
+    if args.json:
+        print(json.dumps(result.to_dict(), indent=2))
+    elif args.csv == "-":
+        sys.stdout.write(format_csv(result))
+    else:
+        print(format_table(result))
+    for seq in result.sequences:
+        if seq.missing:
+            print(f"bgsub: warning: {seq.name}: {len(seq.missing)} frames had no prediction and "
+                  "were counted as background", file=sys.stderr)
+    return 0

@@ -1,0 +1,920 @@
+"""CDnet 2014 evaluation: confusion counts and the seven metrics, per sequence and per dataset.
+
+Ground truth (one sequence)
+    A folder with ``groundtruth/gtNNNNNN.png`` (1-based frame numbers), optionally
+    ``temporalROI.txt`` ("first last": the frames that carry valid ground truth) and ``ROI.bmp``
+    (the spatial region of interest: non-zero = inside). Labels are CDnet's:
+
+    ======  =======================  ==========
+    value   meaning                  counted as
+    ======  =======================  ==========
+    0       static background        negative
+    50      hard shadow              negative
+    85      outside the ROI          ignored
+    170     unknown / object border  ignored
+    255     moving object            positive
+    ======  =======================  ==========
+
+    Any other value is an :class:`InputError` naming the file: the real CDnet ground truth uses
+    exactly these five values (checked on ``CDnet2014_cameraJitter_traffic``: 0, 50, 85, 170, 255
+    only), so another value means the file is not CDnet ground truth (e.g. an anti-aliased or
+    JPEG-compressed mask) and guessing a class for it would bias the scores. Colour ground-truth
+    images are accepted when their three channels are equal (CDnet's own pngs are stored so).
+
+Ground truth (a dataset)
+    A root folder searched at any depth; a folder is a sequence if it holds a ``groundtruth/``
+    subfolder (its subfolders are not searched further). A sequence's *category* is the name of
+    the folder holding it (``root/cameraJitter/traffic`` -> ``cameraJitter``); a sequence lying
+    directly in the root has the family of its name instead: the part before the last ``_``
+    (``BMS26_cars1`` -> ``BMS26``, ``static_s1`` -> ``static``, a name without ``_`` is its own
+    family).
+
+Predictions
+    A folder of ``binNNNNNN.png`` masks (same numbering as the ground truth; ``.bmp``/``.jpg``/
+    ``.tif`` are read too) or a mask video, whose frame ``i`` (0-based) is frame number ``i + 1``;
+    or, from Python, an iterable of ``(frame_number, mask)`` pairs. A pixel is foreground when its
+    value is > 127 (colour masks are converted to grey first). For a dataset, the prediction of
+    the sequence at ``GT_ROOT/REL`` (``REL`` = its path relative to the root, e.g.
+    ``cameraJitter/traffic``; ``NAME`` = its folder name) is the first that exists of
+    ``PRED_ROOT/REL/``, ``PRED_ROOT/NAME/``, ``PRED_ROOT/REL.<ext>``, ``PRED_ROOT/NAME.<ext>``
+    with ``<ext>`` a video extension (:data:`VIDEO_EXTENSIONS`).
+
+Which pixels and frames count
+    Frames with a ground-truth png inside the temporal ROI (all of them without
+    ``temporalROI.txt``), optionally narrowed by ``first_frame``/``last_frame``/``frames`` and
+    ``skip_first`` (leaves out frame 1, the first frame of the video, where a background model
+    has seen nothing yet; it changes nothing when the temporal ROI starts later, as in CDnet).
+    Pixels inside ``ROI.bmp`` (unless ``ignore_roi_bmp``) whose label is not 85 or 170. An
+    ``ROI.bmp`` that cannot be read or whose size differs from the frames is an error (the real
+    CDnet ``cameraJitter/traffic`` ROI.bmp is 352x240 for 320x240 frames): pass
+    ``ignore_roi_bmp`` to evaluate without it (label 85 still excludes outside-ROI pixels).
+
+Missing predictions
+    A frame to evaluate without a prediction (a missing png, or a video that ends early) is an
+    :class:`InputError` listing how many and the first ones, unless ``allow_missing``: then each
+    missing frame counts as an all-background prediction (so its objects are false negatives;
+    missing output is never rewarded) and the result reports the count.
+
+Metrics (CDnet 2014; counts summed over all evaluated frames of a sequence)
+    Recall = TP/(TP+FN), Specificity = TN/(TN+FP), FPR = FP/(FP+TN), FNR = FN/(TP+FN),
+    PWC = 100 (FN+FP)/(TP+FN+FP+TN), Precision = TP/(TP+FP), F-measure = 2 TP/(2 TP+FP+FN)
+    (which equals 2 Precision Recall/(Precision+Recall) whenever both are defined).
+    A ratio whose denominator is 0 is undefined: ``nan`` (``n/a`` in tables, ``null`` in JSON);
+    e.g. Precision of a method that marked nothing, Recall of a sequence without objects. F is
+    0 when there are objects and none were found (even if nothing was marked), and undefined
+    only when there was nothing to find and nothing was marked.
+
+Averaging (the CDnet way)
+    A category's metrics are the mean of its sequences' metrics; the overall metrics are the
+    mean of the categories' metrics (each category weighs the same, whatever its size). Means
+    skip undefined values (a metric undefined in every member stays undefined).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+import re
+import sys
+from dataclasses import asdict, dataclass, field, fields
+from pathlib import Path
+from typing import (
+    Any, Dict, Iterable, Iterator, List, Mapping, Optional, Sequence, Tuple, Union,
+)
+
+import cv2
+import numpy as np
+from tqdm import tqdm
+
+from bgsub.errors import InputError
+
+#: Mask-video extensions recognised when looking for a sequence's prediction in a dataset.
+VIDEO_EXTENSIONS = (".mkv", ".avi", ".mp4", ".mov", ".m4v", ".webm")
+#: The seven CDnet metrics, in CDnet's order (attribute names of :class:`Metrics`).
+METRIC_NAMES = ("recall", "specificity", "fpr", "fnr", "pwc", "precision", "f_measure")
+METRIC_TITLES = ("Recall", "Specificity", "FPR", "FNR", "PWC", "Precision", "F-measure")
+
+# Ground-truth label -> class. Looking a whole frame up in a 256-entry table classifies every
+# pixel in one vectorised step.
+NEGATIVE, POSITIVE, IGNORED, INVALID = 0, 1, 2, 3
+_LABEL_CLASS = np.full(256, INVALID, np.uint8)
+_LABEL_CLASS[[0, 50]] = NEGATIVE
+_LABEL_CLASS[255] = POSITIVE
+_LABEL_CLASS[[85, 170]] = IGNORED
+
+_GT_NAME = re.compile(r"^gt(\d+)\.png$", re.IGNORECASE)
+_BIN_NAME = re.compile(r"^bin(\d+)\.(png|bmp|jpe?g|tiff?)$", re.IGNORECASE)
+_MAX_LISTED = 5  # missing frames named in a message
+
+PathLike = Union[str, "os.PathLike[str]"]
+Prediction = Union[PathLike, Iterable[Tuple[int, np.ndarray]], Mapping[int, np.ndarray]]
+
+
+# --------------------------------------------------------------------------------------------
+# Counts and metrics
+# --------------------------------------------------------------------------------------------
+
+
+def _ratio(num: float, den: float) -> float:
+    return num / den if den else math.nan
+
+
+@dataclass(frozen=True)
+class Metrics:
+    """The seven CDnet 2014 metrics; ``nan`` where undefined (see the module docstring)."""
+
+    recall: float
+    specificity: float
+    fpr: float
+    fnr: float
+    pwc: float
+    precision: float
+    f_measure: float
+
+    def as_dict(self) -> Dict[str, Optional[float]]:
+        """Metric name -> value, ``None`` where undefined (JSON-ready)."""
+        return {k: (None if math.isnan(v) else float(v)) for k, v in asdict(self).items()}
+
+    @classmethod
+    def mean(cls, items: Sequence["Metrics"]) -> "Metrics":
+        """Per-metric mean of ``items``, skipping undefined values (CDnet averaging)."""
+        values = {}
+        for f in fields(cls):
+            defined = [getattr(m, f.name) for m in items if not math.isnan(getattr(m, f.name))]
+            values[f.name] = float(np.mean(defined)) if defined else math.nan
+        return cls(**values)
+
+
+@dataclass
+class Counts:
+    """Pixel confusion counts: true/false positives/negatives (ignored pixels are not in them)."""
+
+    tp: int = 0
+    fp: int = 0
+    fn: int = 0
+    tn: int = 0
+
+    @property
+    def total(self) -> int:
+        return self.tp + self.fp + self.fn + self.tn
+
+    def __add__(self, other: "Counts") -> "Counts":
+        return Counts(self.tp + other.tp, self.fp + other.fp, self.fn + other.fn,
+                      self.tn + other.tn)
+
+    def __iadd__(self, other: "Counts") -> "Counts":
+        self.tp += other.tp
+        self.fp += other.fp
+        self.fn += other.fn
+        self.tn += other.tn
+        return self
+
+    def metrics(self) -> Metrics:
+        """The seven CDnet metrics of these counts."""
+        return metrics(self)
+
+    def as_dict(self) -> Dict[str, int]:
+        return {"tp": self.tp, "fp": self.fp, "fn": self.fn, "tn": self.tn}
+
+
+def metrics(counts: Counts) -> Metrics:
+    """The seven CDnet 2014 metrics of ``counts`` (``nan`` where a denominator is 0)."""
+    tp, fp, fn, tn = (float(v) for v in (counts.tp, counts.fp, counts.fn, counts.tn))
+    return Metrics(
+        recall=_ratio(tp, tp + fn),
+        specificity=_ratio(tn, tn + fp),
+        fpr=_ratio(fp, fp + tn),
+        fnr=_ratio(fn, tp + fn),
+        pwc=_ratio(100.0 * (fn + fp), tp + fn + fp + tn),
+        precision=_ratio(tp, tp + fp),
+        f_measure=_ratio(2.0 * tp, 2.0 * tp + fp + fn),
+    )
+
+
+def classify_labels(labels: np.ndarray, *, source: str = "ground truth") -> np.ndarray:
+    """CDnet labels -> classes (0 negative, 1 positive, 2 ignored); other values raise.
+
+    Parameters
+    ----------
+    labels : (H, W) uint8
+        Ground-truth values 0, 50, 85, 170 or 255.
+    source : str
+        Named in the error message.
+
+    Returns
+    -------
+    (H, W) uint8 array of :data:`NEGATIVE`, :data:`POSITIVE`, :data:`IGNORED`.
+    """
+    classes = _LABEL_CLASS[labels]
+    if np.any(classes == INVALID):
+        bad = np.unique(labels[classes == INVALID])[:5].tolist()
+        raise InputError(
+            f"{source} has values {bad} that are not CDnet labels (0, 50, 85, 170, 255)"
+        )
+    return classes
+
+
+def count_frame(
+    prediction: np.ndarray, labels: np.ndarray, roi: Optional[np.ndarray] = None
+) -> Counts:
+    """Confusion counts of one frame.
+
+    Parameters
+    ----------
+    prediction : (H, W) uint8
+        Predicted mask; foreground where > 127.
+    labels : (H, W) uint8
+        CDnet ground-truth labels (see :func:`classify_labels`).
+    roi : (H, W) bool, optional
+        Pixels to evaluate; ``None`` = all.
+
+    Returns
+    -------
+    Counts of this frame.
+    """
+    if prediction.shape != labels.shape:
+        raise InputError(
+            f"prediction is {_size(prediction)} but ground truth is {_size(labels)}"
+        )
+    classes = classify_labels(labels)
+    if roi is not None:
+        classes = np.where(roi, classes, np.uint8(IGNORED))
+    # One pass: code = 2 * class + predicted, counted with bincount.
+    code = classes * np.uint8(2) + (prediction > 127).astype(np.uint8)
+    hist = np.bincount(code.ravel(), minlength=6)
+    return Counts(tp=int(hist[3]), fp=int(hist[1]), fn=int(hist[2]), tn=int(hist[0]))
+
+
+def _size(image: np.ndarray) -> str:
+    return f"{image.shape[1]}x{image.shape[0]}"
+
+
+# --------------------------------------------------------------------------------------------
+# Ground truth
+# --------------------------------------------------------------------------------------------
+
+
+def is_sequence(path: PathLike) -> bool:
+    """Whether ``path`` is a CDnet sequence folder (it holds a ``groundtruth/`` folder)."""
+    return (Path(path) / "groundtruth").is_dir()
+
+
+def _read_labels(path: Path) -> np.ndarray:
+    """Read one ground-truth png as ``(H, W) uint8`` labels (equal-channel colour accepted)."""
+    image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if image is None:
+        raise InputError(f"cannot read ground-truth image {path}")
+    if image.dtype != np.uint8:
+        raise InputError(f"ground truth {path} is {image.dtype}, expected 8-bit labels")
+    if image.ndim == 3:
+        channels = image[..., :3]
+        first = channels[..., 0]
+        if not all(np.array_equal(first, channels[..., c]) for c in range(1, channels.shape[2])):
+            raise InputError(f"ground truth {path} is a colour image (its channels differ)")
+        image = np.ascontiguousarray(first)
+    return image
+
+
+def _read_temporal_roi(path: Path) -> Optional[Tuple[int, int]]:
+    if not path.is_file():
+        return None
+    parts = path.read_text(errors="replace").split()
+    try:
+        first, last = int(parts[0]), int(parts[1])
+    except (IndexError, ValueError):
+        raise InputError(f"{path} must hold two frame numbers 'first last'") from None
+    if first < 1 or last < first:
+        raise InputError(f"{path} holds an empty or invalid frame range {first}-{last}")
+    return first, last
+
+
+@dataclass
+class GroundTruth:
+    """One CDnet sequence's ground truth, read lazily frame by frame.
+
+    Attributes
+    ----------
+    path : Path
+        The sequence folder.
+    frames : dict int -> Path
+        Frame number (1-based) -> ``gtNNNNNN.png``, in order.
+    temporal_roi : (first, last) or None
+        From ``temporalROI.txt``.
+    roi : (H, W) bool or None
+        From ``ROI.bmp`` (non-zero = inside), when present and used.
+    width, height : int
+        Frame size (of the first ground-truth frame).
+    """
+
+    path: Path
+    frames: Dict[int, Path]
+    temporal_roi: Optional[Tuple[int, int]]
+    roi: Optional[np.ndarray]
+    width: int
+    height: int
+    notes: List[str] = field(default_factory=list)
+
+    def select_frames(
+        self,
+        *,
+        first_frame: Optional[int] = None,
+        last_frame: Optional[int] = None,
+        frames: Optional[Iterable[int]] = None,
+        skip_first: bool = False,
+    ) -> List[int]:
+        """Frame numbers to evaluate, ascending (see "Which pixels and frames count").
+
+        Parameters
+        ----------
+        first_frame, last_frame : int, optional
+            Keep only frame numbers in ``[first_frame, last_frame]`` (1-based, inclusive).
+        frames : iterable of int, optional
+            Keep only these frame numbers (e.g. a handful, for a quick check).
+        skip_first : bool
+            Leave out frame 1, where a background model run from the start has no history.
+        """
+        numbers = list(self.frames)
+        if self.temporal_roi is not None:
+            lo, hi = self.temporal_roi
+            numbers = [n for n in numbers if lo <= n <= hi]
+        if first_frame is not None:
+            numbers = [n for n in numbers if n >= first_frame]
+        if last_frame is not None:
+            numbers = [n for n in numbers if n <= last_frame]
+        if frames is not None:
+            wanted = {int(n) for n in frames}
+            numbers = [n for n in numbers if n in wanted]
+        if skip_first:
+            numbers = [n for n in numbers if n != 1]
+        if not numbers:
+            roi = (f" (temporal ROI {self.temporal_roi[0]}-{self.temporal_roi[1]})"
+                   if self.temporal_roi else "")
+            raise InputError(f"no ground-truth frames left to evaluate in {self.path}{roi}")
+        return numbers
+
+    def labels(self, number: int) -> np.ndarray:
+        """``(H, W) uint8`` CDnet labels of frame ``number``."""
+        path = self.frames[number]
+        labels = _read_labels(path)
+        if labels.shape != (self.height, self.width):
+            raise InputError(
+                f"ground truth {path} is {_size(labels)} but the sequence's first frame is "
+                f"{self.width}x{self.height}"
+            )
+        return labels
+
+
+def open_ground_truth(path: PathLike, *, ignore_roi_bmp: bool = False) -> GroundTruth:
+    """Index a CDnet sequence folder (reads only its first ground-truth frame and ROI.bmp).
+
+    Parameters
+    ----------
+    path : str or Path
+        Folder holding ``groundtruth/``.
+    ignore_roi_bmp : bool
+        Do not read ``ROI.bmp`` (labels 85/170 still exclude pixels).
+
+    Raises
+    ------
+    InputError
+        No ground-truth pngs, malformed ``temporalROI.txt``, unreadable or mis-sized ``ROI.bmp``.
+    """
+    root = Path(path)
+    gt_dir = root / "groundtruth"
+    if not gt_dir.is_dir():
+        raise InputError(f"{root} is not a CDnet sequence: it has no groundtruth/ folder")
+    frames: Dict[int, Path] = {}
+    for entry in os.scandir(gt_dir):
+        match = _GT_NAME.match(entry.name)
+        if match:
+            frames[int(match.group(1))] = Path(entry.path)
+    if not frames:
+        raise InputError(f"no gtNNNNNN.png files in {gt_dir}")
+    frames = dict(sorted(frames.items()))
+    first = _read_labels(next(iter(frames.values())))
+    height, width = first.shape
+    temporal_roi = _read_temporal_roi(root / "temporalROI.txt")
+    notes: List[str] = []
+    roi = None
+    roi_path = root / "ROI.bmp"
+    if roi_path.is_file():
+        if ignore_roi_bmp:
+            notes.append("ROI.bmp ignored")
+        else:
+            image = cv2.imread(str(roi_path), cv2.IMREAD_GRAYSCALE)
+            if image is None:
+                raise InputError(f"cannot read {roi_path} (pass --no-roi-bmp to ignore it)")
+            if image.shape != (height, width):
+                raise InputError(
+                    f"{roi_path} is {_size(image)} but the ground truth is {width}x{height} "
+                    "(pass --no-roi-bmp to ignore it)"
+                )
+            roi = image > 0
+            notes.append("ROI.bmp applied")
+    return GroundTruth(root, frames, temporal_roi, roi, width, height, notes)
+
+
+# --------------------------------------------------------------------------------------------
+# Predictions
+# --------------------------------------------------------------------------------------------
+
+
+def _bin_frames(folder: Path) -> Dict[int, Path]:
+    found: Dict[int, Path] = {}
+    for entry in os.scandir(folder):
+        match = _BIN_NAME.match(entry.name)
+        if match:
+            found.setdefault(int(match.group(1)), Path(entry.path))
+    return found
+
+
+def _to_gray(mask: np.ndarray, source: str) -> np.ndarray:
+    if mask.ndim == 3:
+        if mask.shape[2] == 1:
+            return mask[..., 0]
+        return cv2.cvtColor(mask[..., :3], cv2.COLOR_BGR2GRAY)
+    if mask.ndim != 2:
+        raise InputError(f"prediction {source} has shape {mask.shape}, expected (H, W)")
+    return mask
+
+
+def _as_uint8_mask(mask: Any, number: int) -> np.ndarray:
+    """A mask given from Python as uint8; a bool mask (True = foreground) becomes 0/255."""
+    mask = np.asarray(mask)
+    if mask.dtype == bool:
+        return mask.astype(np.uint8) * np.uint8(255)
+    if mask.dtype != np.uint8:
+        raise InputError(f"predicted mask of frame {number} is {mask.dtype}; give uint8 0/255 "
+                         "or bool masks")
+    return mask
+
+
+class _PredictionReader:
+    """Yields ``(number, mask)`` for the wanted frame numbers it has; knows how to name them."""
+
+    label: str
+
+    def read(self, numbers: Sequence[int]) -> Iterator[Tuple[int, np.ndarray]]:
+        raise NotImplementedError
+
+    def frame_name(self, number: int) -> str:
+        return f"frame {number}"
+
+    def missing_message(self, missing: Sequence[int], total: int) -> str:
+        names = ", ".join(self.frame_name(n) for n in missing[:_MAX_LISTED])
+        more = ", ..." if len(missing) > _MAX_LISTED else ""
+        return (f"{len(missing)} of {total} frames to evaluate have no prediction in "
+                f"{self.label} (first: {names}{more})")
+
+
+class _FolderReader(_PredictionReader):
+    def __init__(self, folder: Path) -> None:
+        self.label = str(folder)
+        self.files = _bin_frames(folder)
+        if not self.files:
+            raise InputError(f"no binNNNNNN.png masks in {folder}")
+
+    def read(self, numbers: Sequence[int]) -> Iterator[Tuple[int, np.ndarray]]:
+        for number in numbers:
+            path = self.files.get(number)
+            if path is None:
+                continue
+            mask = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+            if mask is None:
+                raise InputError(f"cannot read predicted mask {path}")
+            yield number, mask
+
+    def frame_name(self, number: int) -> str:
+        return f"bin{number:06d}.png"
+
+
+class _VideoReader(_PredictionReader):
+    def __init__(self, path: Path) -> None:
+        self.label = str(path)
+        self.path = path
+        self.frames_read = 0
+
+    def read(self, numbers: Sequence[int]) -> Iterator[Tuple[int, np.ndarray]]:
+        from bgsub.sources import open_source  # the frame reader (another stage's module)
+
+        wanted = set(numbers)
+        # Frame number n is 0-based index n - 1. Reading from the start (not from min(numbers))
+        # lets a video that ends before the first wanted frame report missing frames instead of
+        # failing to open.
+        with open_source(str(self.path), stop=max(numbers)) as source:
+            for index, frame in source:
+                self.frames_read = index + 1
+                if index + 1 in wanted:
+                    yield index + 1, _to_gray(frame, f"{self.path} frame {index + 1}")
+
+    def missing_message(self, missing: Sequence[int], total: int) -> str:
+        return (f"{self.label} ends after frame {self.frames_read} but the ground truth needs "
+                f"frames up to {max(missing)}: " + super().missing_message(missing, total))
+
+
+class _IterableReader(_PredictionReader):
+    def __init__(self, pairs: Union[Iterable[Tuple[int, np.ndarray]], Mapping[int, np.ndarray]],
+                 label: str = "the given predictions") -> None:
+        self.label = label
+        self.pairs = pairs.items() if isinstance(pairs, Mapping) else pairs
+
+    def read(self, numbers: Sequence[int]) -> Iterator[Tuple[int, np.ndarray]]:
+        wanted = set(numbers)
+        for number, mask in self.pairs:
+            if int(number) in wanted:
+                yield int(number), _to_gray(_as_uint8_mask(mask, number), f"frame {number}")
+
+
+def _prediction_reader(pred: Optional[Prediction]) -> _PredictionReader:
+    if pred is None:  # a dataset sequence without any prediction (allow_missing)
+        return _IterableReader((), label="(no prediction)")
+    if isinstance(pred, (str, os.PathLike)):
+        path = Path(pred)
+        if path.is_dir():
+            return _FolderReader(path)
+        if path.is_file():
+            return _VideoReader(path)
+        raise InputError(f"prediction {path} does not exist")
+    return _IterableReader(pred)
+
+
+# --------------------------------------------------------------------------------------------
+# Results
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass
+class SequenceResult:
+    """Evaluation of one sequence.
+
+    Attributes
+    ----------
+    name, category : str
+        Sequence folder name and its category (see the module docstring).
+    counts : Counts
+        Summed over the evaluated frames.
+    n_frames : int
+        Frames evaluated (including missing ones counted as background).
+    missing : list of int
+        Frame numbers without a prediction (only non-empty with ``allow_missing``).
+    first_frame, last_frame : int
+        Evaluated frame-number range.
+    """
+
+    name: str
+    category: str
+    gt_path: str
+    pred_path: str
+    counts: Counts
+    n_frames: int
+    first_frame: int
+    last_frame: int
+    missing: List[int] = field(default_factory=list)
+    notes: List[str] = field(default_factory=list)
+
+    @property
+    def metrics(self) -> Metrics:
+        return self.counts.metrics()
+
+    def to_dict(self) -> Dict[str, Any]:
+        return {
+            "name": self.name,
+            "category": self.category,
+            "groundtruth": self.gt_path,
+            "prediction": self.pred_path,
+            "frames": self.n_frames,
+            "first_frame": self.first_frame,
+            "last_frame": self.last_frame,
+            "missing": len(self.missing),
+            "missing_frames": self.missing[:_MAX_LISTED],
+            "counts": self.counts.as_dict(),
+            "metrics": self.metrics.as_dict(),
+            "notes": list(self.notes),
+        }
+
+
+@dataclass
+class CategoryResult:
+    """A category: metrics = mean of its sequences' metrics; counts = their sum (for reference)."""
+
+    name: str
+    sequences: List[str]
+    metrics: Metrics
+    counts: Counts
+
+    def to_dict(self) -> Dict[str, Any]:
+        return {"name": self.name, "sequences": list(self.sequences),
+                "counts": self.counts.as_dict(), "metrics": self.metrics.as_dict()}
+
+
+@dataclass
+class DatasetResult:
+    """Per-sequence, per-category and overall (mean of category means) results."""
+
+    sequences: List[SequenceResult]
+    categories: List[CategoryResult]
+    overall: Metrics
+
+    @classmethod
+    def from_sequences(cls, sequences: Sequence[SequenceResult]) -> "DatasetResult":
+        """Average the CDnet way: categories = mean of sequences, overall = mean of categories."""
+        by_category: Dict[str, List[SequenceResult]] = {}
+        for result in sequences:
+            by_category.setdefault(result.category, []).append(result)
+        categories = []
+        for name, members in by_category.items():
+            total = Counts()
+            for member in members:
+                total += member.counts
+            categories.append(CategoryResult(
+                name, [m.name for m in members], Metrics.mean([m.metrics for m in members]), total
+            ))
+        overall = Metrics.mean([c.metrics for c in categories])
+        return cls(list(sequences), categories, overall)
+
+    def to_dict(self) -> Dict[str, Any]:
+        return {
+            "sequences": [s.to_dict() for s in self.sequences],
+            "categories": [c.to_dict() for c in self.categories],
+            "overall": self.overall.as_dict(),
+        }
+
+
+# --------------------------------------------------------------------------------------------
+# Evaluation
+# --------------------------------------------------------------------------------------------
+
+
+def category_of(rel_path: PathLike) -> str:
+    """Category of a sequence at ``rel_path`` (relative to the dataset root); see module doc."""
+    parts = Path(rel_path).parts
+    if len(parts) >= 2:
+        return parts[-2]
+    name = parts[-1]
+    return name.rsplit("_", 1)[0] if "_" in name.strip("_") else name
+
+
+def evaluate_sequence(
+    pred: Optional[Prediction],
+    gt_dir: PathLike,
+    *,
+    name: Optional[str] = None,
+    category: Optional[str] = None,
+    ignore_roi_bmp: bool = False,
+    allow_missing: bool = False,
+    skip_first: bool = False,
+    first_frame: Optional[int] = None,
+    last_frame: Optional[int] = None,
+    frames: Optional[Iterable[int]] = None,
+    quiet: bool = True,
+) -> SequenceResult:
+    """Evaluate the predicted masks of one sequence against its CDnet ground truth.
+
+    Parameters
+    ----------
+    pred : path or iterable of (frame_number, (H, W) uint8 mask), or None
+        A ``binNNNNNN.png`` folder, a mask video, or masks from Python (a generator works: it is
+        consumed once, streaming; a dict ``{frame_number: mask}`` too). ``None``: no prediction
+        at all (every frame missing).
+    gt_dir : path
+        CDnet sequence folder (``groundtruth/``, optional ``temporalROI.txt``, ``ROI.bmp``).
+    name, category : str, optional
+        Defaults: the folder name and :func:`category_of` it.
+    ignore_roi_bmp, allow_missing, skip_first, first_frame, last_frame, frames
+        See the module docstring and :meth:`GroundTruth.select_frames`.
+    quiet : bool
+        No progress bar (it is also off when stderr is not a terminal).
+
+    Returns
+    -------
+    SequenceResult
+
+    Raises
+    ------
+    InputError
+        Bad ground truth, a prediction of another size, or missing predictions without
+        ``allow_missing``.
+    """
+    gt = open_ground_truth(gt_dir, ignore_roi_bmp=ignore_roi_bmp)
+    numbers = gt.select_frames(first_frame=first_frame, last_frame=last_frame, frames=frames,
+                               skip_first=skip_first)
+    reader = _prediction_reader(pred)
+    if isinstance(reader, _FolderReader) and not allow_missing:
+        absent = [n for n in numbers if n not in reader.files]
+        if absent:  # fail before reading anything
+            raise InputError(reader.missing_message(absent, len(numbers))
+                             + "; use --allow-missing to count them as background")
+
+    counts = Counts()
+    seen = set()
+    bar = tqdm(total=len(numbers), desc=f"eval {gt.path.name}", unit="frame", file=sys.stderr,
+               disable=quiet or not sys.stderr.isatty(), leave=False, dynamic_ncols=True)
+    with bar:
+        for number, mask in reader.read(numbers):
+            if number in seen:
+                continue
+            seen.add(number)
+            labels = gt.labels(number)
+            if mask.shape != labels.shape:
+                raise InputError(
+                    f"prediction {reader.label} ({reader.frame_name(number)}) is {_size(mask)} "
+                    f"but ground truth {gt.frames[number]} is {_size(labels)}"
+                )
+            try:
+                counts += count_frame(mask, labels, gt.roi)
+            except InputError as err:
+                raise InputError(f"{gt.frames[number]}: {err}") from None
+            bar.update(1)
+
+        missing = [n for n in numbers if n not in seen]
+        if missing and not allow_missing:
+            raise InputError(reader.missing_message(missing, len(numbers))
+                             + "; use --allow-missing to count them as background")
+        for number in missing:  # an absent mask is an all-background prediction
+            labels = gt.labels(number)
+            counts += count_frame(np.zeros_like(labels), labels, gt.roi)
+            bar.update(1)
+
+    notes = list(gt.notes)
+    if gt.temporal_roi is not None:
+        notes.append(f"temporal ROI {gt.temporal_roi[0]}-{gt.temporal_roi[1]}")
+    if missing:
+        notes.append(f"{len(missing)} missing frames counted as background")
+    rel_name = name or gt.path.resolve().name
+    return SequenceResult(
+        name=rel_name,
+        category=category or category_of(rel_name),
+        gt_path=str(gt.path),
+        pred_path=reader.label,
+        counts=counts,
+        n_frames=len(numbers),
+        first_frame=numbers[0],
+        last_frame=numbers[-1],
+        missing=missing,
+        notes=notes,
+    )
+
+
+def find_sequences(gt_root: PathLike) -> List[Path]:
+    """CDnet sequence folders under ``gt_root`` at any depth, sorted by relative path."""
+    root = Path(gt_root)
+    if not root.is_dir():
+        raise InputError(f"ground truth {root} is not a folder")
+    found: List[Path] = []
+    for current, dirs, _files in os.walk(root):
+        if "groundtruth" in dirs:
+            found.append(Path(current))
+            dirs[:] = []  # a sequence's subfolders are its own
+        else:
+            dirs.sort()
+    return sorted(found, key=lambda p: p.relative_to(root).as_posix())
+
+
+def find_prediction(pred_root: PathLike, rel_path: PathLike) -> Optional[Path]:
+    """The prediction of the sequence ``rel_path`` in ``pred_root`` (see module doc), or None."""
+    root, rel = Path(pred_root), Path(rel_path)
+    for candidate in (root / rel, root / rel.name):
+        if candidate.is_dir():
+            return candidate
+    for base in (root / rel, root / rel.name):
+        for ext in VIDEO_EXTENSIONS:
+            candidate = base.with_name(base.name + ext)
+            if candidate.is_file():
+                return candidate
+    return None
+
+
+def evaluate_dataset(
+    pred_root: PathLike,
+    gt_root: PathLike,
+    *,
+    allow_missing: bool = False,
+    **options: Any,
+) -> DatasetResult:
+    """Evaluate every sequence under ``gt_root`` against its prediction in ``pred_root``.
+
+    Parameters
+    ----------
+    pred_root : path
+        One prediction per sequence: ``REL/`` or ``NAME/`` (bin pngs) or ``REL.mkv`` /
+        ``NAME.mkv`` (any of :data:`VIDEO_EXTENSIONS`).
+    gt_root : path
+        Dataset root (sequences at any depth).
+    allow_missing : bool
+        Count missing frames, and sequences without any prediction, as all background.
+    **options
+        Passed to :func:`evaluate_sequence` (``ignore_roi_bmp``, ``skip_first``, ...).
+
+    Returns
+    -------
+    DatasetResult
+    """
+    root = Path(gt_root)
+    sequences = find_sequences(root)
+    if not sequences:
+        raise InputError(f"no CDnet sequences (folders with groundtruth/) under {root}")
+    if not Path(pred_root).is_dir():
+        raise InputError(f"predictions {pred_root} must be a folder when the ground truth is a "
+                         "dataset of several sequences")
+    rels = [seq.relative_to(root) for seq in sequences]
+    preds = {rel: find_prediction(pred_root, rel) for rel in rels}
+    absent = [rel.as_posix() for rel, p in preds.items() if p is None]
+    if absent and not allow_missing:
+        listed = ", ".join(absent[:_MAX_LISTED]) + (", ..." if len(absent) > _MAX_LISTED else "")
+        raise InputError(f"no prediction in {pred_root} for {len(absent)} of {len(rels)} "
+                         f"sequences ({listed}); use --allow-missing to count them as background")
+    results = []
+    for seq, rel in zip(sequences, rels):
+        pred = preds[rel]
+        results.append(evaluate_sequence(
+            pred, seq, name=rel.name,
+            category=category_of(rel), allow_missing=allow_missing, **options,
+        ))
+    return DatasetResult.from_sequences(results)
+
+
+def evaluate(pred: PathLike, gt: PathLike, **options: Any) -> DatasetResult:
+    """Evaluate a sequence or a dataset (whichever ``gt`` is) -> :class:`DatasetResult`.
+
+    A single sequence gives a result with one sequence, one category, and overall = it.
+    """
+    if not Path(gt).exists():
+        raise InputError(f"ground truth {gt} does not exist")
+    if is_sequence(gt):
+        return DatasetResult.from_sequences([evaluate_sequence(pred, gt, **options)])
+    return evaluate_dataset(pred, gt, **options)
+
+
+# --------------------------------------------------------------------------------------------
+# Reports
+# --------------------------------------------------------------------------------------------
+
+CSV_COLUMNS = ("level", "name", "category", "frames", "missing", "tp", "fp", "fn", "tn") + \
+    METRIC_NAMES
+
+
+def result_rows(result: DatasetResult) -> List[Dict[str, Any]]:
+    """One flat row per sequence, per category and overall (``level`` says which)."""
+    rows: List[Dict[str, Any]] = []
+    for s in result.sequences:
+        rows.append({"level": "sequence", "name": s.name, "category": s.category,
+                     "frames": s.n_frames, "missing": len(s.missing), **s.counts.as_dict(),
+                     **s.metrics.as_dict()})
+    total = Counts()
+    for c in result.categories:
+        total += c.counts
+        members = [s for s in result.sequences if s.category == c.name]
+        rows.append({"level": "category", "name": c.name, "category": c.name,
+                     "frames": sum(s.n_frames for s in members),
+                     "missing": sum(len(s.missing) for s in members), **c.counts.as_dict(),
+                     **c.metrics.as_dict()})
+    rows.append({"level": "overall", "name": "overall", "category": "",
+                 "frames": sum(s.n_frames for s in result.sequences),
+                 "missing": sum(len(s.missing) for s in result.sequences), **total.as_dict(),
+                 **result.overall.as_dict()})
+    return rows
+
+
+def format_csv(result: DatasetResult) -> str:
+    """CSV text with a header row and :data:`CSV_COLUMNS`; undefined metrics are empty cells."""
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=CSV_COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    for row in result_rows(result):
+        writer.writerow({k: ("" if row[k] is None else row[k]) for k in CSV_COLUMNS})
+    return buffer.getvalue()
+
+
+def _cell(value: Optional[float], pwc: bool = False) -> str:
+    if value is None:
+        return "n/a"
+    return f"{value:.3f}" if pwc else f"{value:.4f}"
+
+
+def format_table(result: DatasetResult) -> str:
+    """Human-readable table: sequences, then (for several) category means and the overall mean."""
+    rows = result_rows(result)
+    single = len(result.sequences) == 1
+    shown = rows[:1] if single else rows
+    names = [r["name"] if r["level"] != "category" else f"[{r['name']}]" for r in shown]
+    width = max(12, *(len(n) for n in names))
+    header = f"{'sequence':<{width}} {'frames':>6} " + " ".join(
+        f"{t:>11}" for t in METRIC_TITLES)
+    lines = [header, "-" * len(header)]
+    titles = {"category": "categories (mean of their sequences):",
+              "overall": "overall (mean of the categories):"}
+    previous = "sequence"
+    for row, label in zip(shown, names):
+        if row["level"] != previous:
+            lines.append(titles[row["level"]])
+            previous = row["level"]
+        cells = " ".join(f"{_cell(row[m], m == 'pwc'):>11}" for m in METRIC_NAMES)
+        lines.append(f"{label:<{width}} {row['frames']:>6} {cells}")
+    for s in result.sequences:
+        c = s.counts
+        notes = "; ".join(s.notes)
+        lines.append(f"{s.name}: frames {s.first_frame}-{s.last_frame}, TP {c.tp} FP {c.fp} "
+                     f"FN {c.fn} TN {c.tn}" + (f" ({notes})" if notes else ""))
+    return "\n".join(lines)

@@ -1,0 +1,131 @@
+"""The ``bgsub eval`` and ``bgsub methods`` commands."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from bgsub.cli import main
+from bgsub.engines import get_engine_spec
+
+GT = np.array([[255, 255, 0, 0, 170]] * 4, np.uint8)  # 8 positives, 8 negatives, 4 ignored
+PRED = np.array([[255, 0, 0, 0, 255]] * 4, np.uint8)  # TP 4, FN 4, TN 8
+
+
+@pytest.fixture
+def case(tmp_path):
+    seq = tmp_path / "seq"
+    (seq / "groundtruth").mkdir(parents=True)
+    pred = tmp_path / "pred"
+    pred.mkdir()
+    for n in (1, 2):
+        cv2.imwrite(str(seq / "groundtruth" / f"gt{n:06d}.png"), GT)
+        cv2.imwrite(str(pred / f"bin{n:06d}.png"), PRED)
+    return pred, seq
+
+
+def test_eval_text_table(case, capsys):
+    pred, seq = case
+    assert main(["eval", str(pred), str(seq)]) == 0
+    out = capsys.readouterr().out
+    assert "F-measure" in out and "Recall" in out
+    # Recall 0.5, precision 1, F = 2/3; TP 8 FN 8 TN 16 over both frames.
+    assert "0.5000" in out and "0.6667" in out and "TP 8 FP 0 FN 8 TN 16" in out
+
+
+def test_eval_json(case, capsys):
+    pred, seq = case
+    assert main(["eval", str(pred), str(seq), "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    (only,) = report["sequences"]
+    assert only["counts"] == {"tp": 8, "fp": 0, "fn": 8, "tn": 16}
+    assert only["metrics"]["f_measure"] == pytest.approx(2 / 3)
+    assert report["overall"]["recall"] == pytest.approx(0.5)
+
+
+def test_eval_json_undefined_metric_is_null(case, capsys):
+    pred, seq = case
+    for png in pred.iterdir():
+        cv2.imwrite(str(png), np.zeros_like(PRED))
+    assert main(["eval", str(pred), str(seq), "--json"]) == 0
+    metrics = json.loads(capsys.readouterr().out)["sequences"][0]["metrics"]
+    assert metrics["precision"] is None and metrics["f_measure"] == 0.0
+
+
+def test_eval_csv_file_and_stdout(case, tmp_path, capsys):
+    pred, seq = case
+    target = tmp_path / "scores.csv"
+    assert main(["eval", str(pred), str(seq), "--csv", str(target), "--skip-first"]) == 0
+    rows = list(csv.DictReader(io.StringIO(target.read_text())))
+    assert [r["level"] for r in rows] == ["sequence", "category", "overall"]
+    assert rows[0]["frames"] == "1" and rows[0]["tp"] == "4"
+    assert float(rows[0]["recall"]) == pytest.approx(0.5)
+    capsys.readouterr()
+    assert main(["eval", str(pred), str(seq), "--csv", "-"]) == 0
+    printed = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))
+    assert printed[0]["tp"] == "8"
+
+
+def test_eval_csv_not_overwritten(case, tmp_path, capsys):
+    pred, seq = case
+    target = tmp_path / "scores.csv"
+    target.write_text("keep me")
+    assert main(["eval", str(pred), str(seq), "--csv", str(target)]) == 2
+    assert "--overwrite" in capsys.readouterr().err
+    assert target.read_text() == "keep me"
+
+
+def test_eval_missing_frame_exit_code(case, capsys):
+    pred, seq = case
+    (pred / "bin000002.png").unlink()
+    assert main(["eval", str(pred), str(seq)]) == 2
+    err = capsys.readouterr().err
+    assert "bin000002.png" in err and "Traceback" not in err and len(err.splitlines()) == 1
+    assert main(["eval", str(pred), str(seq), "--allow-missing", "--json"]) == 0
+    captured = capsys.readouterr()
+    assert json.loads(captured.out)["sequences"][0]["missing"] == 1
+    assert "counted as background" in captured.err
+
+
+def test_eval_bad_paths_exit_2(case, tmp_path, capsys):
+    pred, seq = case
+    assert main(["eval", str(tmp_path / "nope"), str(seq)]) == 2
+    assert main(["eval", str(pred), str(tmp_path / "nope")]) == 2
+    assert main(["eval", str(pred), str(seq), "--first-frame", "0"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("bgsub: error:") == 3
+
+
+def test_eval_help_teaches():
+    with pytest.raises(SystemExit) as exit_info:
+        main(["eval", "--help"])
+    assert exit_info.value.code == 0
+
+
+def test_methods_lists_engines_and_defaults(capsys):
+    assert main(["methods"]) == 0
+    out = capsys.readouterr().out
+    for name in ("mog2", "knn", "framediff"):
+        assert f"\n{name}" in "\n" + out
+    assert "(default)" in out
+    assert "history=500" in out and "var_threshold=16.0" in out and "detect_shadows=false" in out
+
+
+def test_methods_json_matches_registry(capsys):
+    assert main(["methods", "--json"]) == 0
+    entries = {e["name"]: e for e in json.loads(capsys.readouterr().out)}
+    assert sum(e["default"] for e in entries.values()) == 1
+    spec = get_engine_spec("knn")
+    assert entries["knn"]["description"] == spec.description
+    assert {k: v["default"] for k, v in entries["knn"]["params"].items()} == {
+        k: p.default for k, p in spec.params.items()}
+
+
+def test_methods_unknown_name(capsys):
+    assert main(["methods", "nope"]) == 2
+    assert "unknown method" in capsys.readouterr().err

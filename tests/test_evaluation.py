@@ -1,0 +1,332 @@
+"""CDnet 2014 evaluation: counts, metrics, frame/pixel selection, datasets, real ground truth."""
+
+from __future__ import annotations
+
+import math
+import shutil
+from pathlib import Path
+from typing import Dict, Optional, Sequence
+
+import cv2
+import numpy as np
+import pytest
+
+from bgsub.errors import InputError
+from bgsub.evaluation import (
+    Counts, Metrics, category_of, count_frame, evaluate, evaluate_dataset, evaluate_sequence,
+    find_sequences, metrics, open_ground_truth,
+)
+
+
+def write_sequence(folder: Path, gts: Dict[int, np.ndarray], *, temporal_roi=None,
+                   roi: Optional[np.ndarray] = None) -> Path:
+    """A CDnet sequence folder: groundtruth/gtNNNNNN.png, temporalROI.txt, ROI.bmp."""
+    (folder / "groundtruth").mkdir(parents=True)
+    for number, gt in gts.items():
+        cv2.imwrite(str(folder / "groundtruth" / f"gt{number:06d}.png"), gt)
+    if temporal_roi is not None:
+        (folder / "temporalROI.txt").write_text(f"{temporal_roi[0]} {temporal_roi[1]}\n")
+    if roi is not None:
+        cv2.imwrite(str(folder / "ROI.bmp"), roi)
+    return folder
+
+
+def write_bins(folder: Path, masks: Dict[int, np.ndarray]) -> Path:
+    folder.mkdir(parents=True)
+    for number, mask in masks.items():
+        cv2.imwrite(str(folder / f"bin{number:06d}.png"), mask)
+    return folder
+
+
+def u8(rows: Sequence[Sequence[int]]) -> np.ndarray:
+    return np.array(rows, np.uint8)
+
+
+# The hand-computed case. Frames 1-4 exist, the temporal ROI is 2-3, ROI.bmp excludes column 4.
+GT2 = u8([[0, 0, 50, 85, 255],
+          [255, 255, 170, 0, 0],
+          [0, 50, 255, 255, 170],
+          [0, 0, 0, 0, 255]])
+PRED2 = u8([[255, 0, 255, 255, 255],
+            [255, 0, 255, 0, 0],
+            [0, 0, 255, 0, 0],
+            [0, 255, 0, 0, 0]])
+# Columns 0-3 of frame 2, pixel by pixel (gt, pred):
+#   row 0: (0,255) FP, (0,0) TN, (50,255) FP, (85,.) ignored
+#   row 1: (255,255) TP, (255,0) FN, (170,.) ignored, (0,0) TN
+#   row 2: (0,0) TN, (50,0) TN, (255,255) TP, (255,0) FN
+#   row 3: (0,0) TN, (0,255) FP, (0,0) TN, (0,0) TN        -> TP 2, FP 3, FN 2, TN 7
+GT3 = u8([[255, 255, 0, 0, 0]] * 4)
+PRED3 = u8([[255, 0, 255, 0, 0],
+            [255, 0, 0, 0, 0],
+            [0, 0, 0, 0, 0],
+            [0, 0, 0, 0, 0]])
+# Frame 3, columns 0-3: 8 positives of which 2 found (TP 2, FN 6); 8 negatives, 1 marked
+# (FP 1, TN 7). Frames 1 and 4 are outside the temporal ROI: an all-255 prediction there on
+# all-0 ground truth would add 40 false positives if they were counted.
+ROI = np.full((4, 5), 255, np.uint8)
+ROI[:, 4] = 0
+HAND_COUNTS = Counts(tp=4, fp=4, fn=8, tn=14)
+HAND_METRICS = dict(recall=4 / 12, specificity=14 / 18, fpr=4 / 18, fnr=8 / 12,
+                    pwc=100 * 12 / 30, precision=4 / 8, f_measure=0.4)
+
+
+@pytest.fixture
+def hand_case(tmp_path):
+    zeros, ones = np.zeros((4, 5), np.uint8), np.full((4, 5), 255, np.uint8)
+    gt = write_sequence(tmp_path / "cat" / "seq", {1: zeros, 2: GT2, 3: GT3, 4: zeros},
+                        temporal_roi=(2, 3), roi=ROI)
+    pred = write_bins(tmp_path / "pred", {1: ones, 2: PRED2, 3: PRED3, 4: ones})
+    return pred, gt
+
+
+def test_hand_computed_counts_and_metrics(hand_case):
+    pred, gt = hand_case
+    result = evaluate_sequence(pred, gt)
+    assert result.counts == HAND_COUNTS
+    assert (result.n_frames, result.first_frame, result.last_frame) == (2, 2, 3)
+    for name, value in HAND_METRICS.items():
+        assert getattr(result.metrics, name) == pytest.approx(value, abs=1e-12), name
+
+
+def test_roi_bmp_can_be_ignored(hand_case):
+    pred, gt = hand_case
+    result = evaluate_sequence(pred, gt, ignore_roi_bmp=True)
+    # Column 4 joins: frame 2 (255,255) TP, (0,0) TN, 170 ignored, (255,0) FN; frame 3 four TN.
+    assert result.counts == Counts(tp=5, fp=4, fn=9, tn=19)
+
+
+def test_without_temporal_roi_every_gt_frame_counts(tmp_path):
+    zeros, ones = np.zeros((4, 5), np.uint8), np.full((4, 5), 255, np.uint8)
+    gt = write_sequence(tmp_path / "seq", {1: zeros, 2: GT2})
+    pred = write_bins(tmp_path / "pred", {1: ones, 2: PRED2})
+    # Frame 1: 20 FP. Frame 2 over all 5 columns: TP 3, FP 3, FN 3, TN 8 (2 pixels ignored).
+    assert evaluate_sequence(pred, gt).counts == Counts(tp=3, fp=23, fn=3, tn=8)
+
+
+def test_frame_restrictions(hand_case):
+    pred, gt = hand_case
+    only3 = evaluate_sequence(pred, gt, first_frame=3)
+    assert only3.counts == Counts(tp=2, fp=1, fn=6, tn=7) and only3.first_frame == 3
+    assert evaluate_sequence(pred, gt, last_frame=2).counts == Counts(tp=2, fp=3, fn=2, tn=7)
+    assert evaluate_sequence(pred, gt, frames=[3, 4]).counts == only3.counts  # 4: outside ROI
+    with pytest.raises(InputError, match="no ground-truth frames"):
+        evaluate_sequence(pred, gt, first_frame=4)
+    # The temporal ROI (2-3) already leaves frame 1 out: skip_first changes nothing.
+    assert evaluate_sequence(pred, gt, skip_first=True).counts == HAND_COUNTS
+
+
+def test_skip_first_leaves_out_frame_1(tmp_path):
+    zeros, ones = np.zeros((4, 5), np.uint8), np.full((4, 5), 255, np.uint8)
+    gt = write_sequence(tmp_path / "seq", {1: zeros, 2: GT2})
+    pred = write_bins(tmp_path / "pred", {1: ones, 2: PRED2})
+    result = evaluate_sequence(pred, gt, skip_first=True)
+    assert (result.n_frames, result.first_frame) == (1, 2)
+    assert result.counts == Counts(tp=3, fp=3, fn=3, tn=8)  # frame 2 alone
+
+
+def test_undefined_metrics():
+    nothing_to_find = metrics(Counts(tn=10))
+    assert math.isnan(nothing_to_find.recall) and math.isnan(nothing_to_find.precision)
+    assert math.isnan(nothing_to_find.f_measure) and nothing_to_find.specificity == 1.0
+    missed_all = Counts(fn=5, tn=5).metrics()
+    assert missed_all.f_measure == 0.0 and missed_all.recall == 0.0
+    assert math.isnan(missed_all.precision)
+    assert missed_all.as_dict()["precision"] is None
+
+
+def test_metrics_mean_skips_undefined():
+    a = Counts(tp=1, fn=1, tn=2).metrics()  # recall 0.5
+    b = Counts(tn=4).metrics()  # recall undefined
+    c = Counts(tp=1, fn=3, tn=4).metrics()  # recall 0.25
+    assert Metrics.mean([a, b, c]).recall == pytest.approx(0.375)
+
+
+def test_count_frame_matches_independent_numpy():
+    rng = np.random.default_rng(3)
+    labels = rng.choice(np.array([0, 50, 85, 170, 255], np.uint8), size=(37, 53))
+    pred = rng.integers(0, 256, (37, 53)).astype(np.uint8)
+    roi = rng.random((37, 53)) > 0.3
+    p, valid = pred > 127, roi & np.isin(labels, [0, 50, 255])
+    pos, neg = valid & (labels == 255), valid & np.isin(labels, [0, 50])
+    expected = Counts(tp=int((p & pos).sum()), fp=int((p & neg).sum()),
+                      fn=int((~p & pos).sum()), tn=int((~p & neg).sum()))
+    assert count_frame(pred, labels, roi) == expected
+
+
+def test_values_other_than_cdnet_labels_rejected(tmp_path):
+    bad = GT2.copy()
+    bad[0, 0] = 128
+    gt = write_sequence(tmp_path / "seq", {1: bad})
+    pred = write_bins(tmp_path / "pred", {1: PRED2})
+    with pytest.raises(InputError, match=r"gt000001\.png.*\[128\]"):
+        evaluate_sequence(pred, gt)
+
+
+def test_colour_ground_truth_with_equal_channels_accepted(tmp_path):
+    gt = write_sequence(tmp_path / "seq", {2: cv2.cvtColor(GT2, cv2.COLOR_GRAY2BGR)})
+    pred = write_bins(tmp_path / "pred", {2: PRED2})
+    assert evaluate_sequence(pred, gt).counts == Counts(tp=3, fp=3, fn=3, tn=8)
+
+
+def test_missing_frame_reported(hand_case):
+    pred, gt = hand_case
+    (pred / "bin000003.png").unlink()
+    with pytest.raises(InputError, match=r"1 of 2 frames.*bin000003\.png.*--allow-missing"):
+        evaluate_sequence(pred, gt)
+    result = evaluate_sequence(pred, gt, allow_missing=True)
+    assert result.missing == [3]
+    # Frame 3 counted as all background: its 8 positives are false negatives.
+    assert result.counts == Counts(tp=2, fp=3, fn=2 + 8, tn=7 + 8)
+
+
+def test_size_mismatch_names_both_sizes(tmp_path):
+    gt = write_sequence(tmp_path / "seq", {1: GT2})
+    pred = write_bins(tmp_path / "pred", {1: np.zeros((6, 7), np.uint8)})
+    with pytest.raises(InputError, match=r"7x6.*5x4"):
+        evaluate_sequence(pred, gt)
+
+
+def test_roi_bmp_of_wrong_size(tmp_path):
+    gt = write_sequence(tmp_path / "seq", {1: GT2}, roi=np.full((4, 6), 255, np.uint8))
+    pred = write_bins(tmp_path / "pred", {1: PRED2})
+    with pytest.raises(InputError, match=r"ROI\.bmp is 6x4.*5x4.*--no-roi-bmp"):
+        evaluate_sequence(pred, gt)
+    assert evaluate_sequence(pred, gt, ignore_roi_bmp=True).n_frames == 1
+
+
+def _video_case(tmp_path, n_video_frames: int):
+    """GT frames 1-6 (temporal ROI 2-6) of 32x24 and a lossless mask video of the predictions."""
+    from bgsub.sinks import open_mask_sink
+
+    rng = np.random.default_rng(7)
+    gts = {n: rng.choice(np.array([0, 50, 170, 255], np.uint8), size=(24, 32)) for n in range(1, 7)}
+    preds = {n: np.where(rng.random((24, 32)) > 0.5, 255, 0).astype(np.uint8)
+             for n in range(1, 7)}
+    gt = write_sequence(tmp_path / "seq", gts, temporal_roi=(2, 6))
+    video = tmp_path / "masks.mkv"
+    with open_mask_sink(video, width=32, height=24, fps=25.0) as sink:
+        for n in range(1, n_video_frames + 1):
+            sink.write(preds[n], n - 1)
+    folder = write_bins(tmp_path / "bins", preds)
+    return video, folder, gt
+
+
+def test_mask_video_input(tmp_path):
+    video, folder, gt = _video_case(tmp_path, 6)
+    from_video = evaluate_sequence(video, gt)
+    assert from_video.counts == evaluate_sequence(folder, gt).counts
+    assert from_video.n_frames == 5 and from_video.counts.total > 0
+
+
+def test_short_mask_video_reported(tmp_path):
+    video, _, gt = _video_case(tmp_path, 4)
+    with pytest.raises(InputError, match=r"ends after frame 4.*frames up to 6.*2 of 5"):
+        evaluate_sequence(video, gt)
+    assert evaluate_sequence(video, gt, allow_missing=True).missing == [5, 6]
+
+
+def test_python_masks_input(hand_case):
+    _, gt = hand_case
+    masks = ((n, m) for n, m in [(2, PRED2), (3, PRED3)])  # a generator, consumed once
+    assert evaluate_sequence(masks, gt).counts == HAND_COUNTS
+
+
+def test_categories():
+    assert category_of("BMS26_cars1") == "BMS26"
+    assert category_of("static_s1") == "static"
+    assert category_of("pan-zoom_s12") == "pan-zoom"
+    assert category_of("cameraJitter/traffic") == "cameraJitter"
+    assert category_of("highway") == "highway"
+
+
+def test_dataset_averaging_the_cdnet_way(tmp_path):
+    """Categories = mean of sequences, overall = mean of categories (not pooled counts)."""
+    gt_root, pred_root = tmp_path / "gt", tmp_path / "pred"
+    gt = u8([[255, 255, 0, 0]] * 2)  # 4 positives, 4 negatives
+    cases = {  # sequence -> prediction; recall 1, 0.5 in category A; 0.25 in B
+        "catA/one": u8([[255, 255, 0, 0]] * 2),
+        "catA/two": u8([[255, 0, 0, 0]] * 2),
+        "catB/three": u8([[255, 0, 0, 0], [0, 0, 0, 0]]),
+    }
+    for rel, pred in cases.items():
+        write_sequence(gt_root / rel, {1: gt})
+        write_bins(pred_root / Path(rel).name, {1: pred})
+    result = evaluate(pred_root, gt_root)
+    assert [s.name for s in result.sequences] == ["one", "two", "three"]
+    by_name = {c.name: c for c in result.categories}
+    assert by_name["catA"].metrics.recall == pytest.approx(0.75)
+    assert by_name["catB"].metrics.recall == pytest.approx(0.25)
+    assert result.overall.recall == pytest.approx(0.5)  # pooled counts would give 7/12
+    assert by_name["catA"].counts == Counts(tp=6, fp=0, fn=2, tn=8)
+
+
+def test_dataset_finds_mirrored_layout_and_videos(tmp_path):
+    gt_root, pred_root = tmp_path / "gt", tmp_path / "pred"
+    gt = np.zeros((16, 16), np.uint8)
+    write_sequence(gt_root / "a" / "deep" / "seq", {1: gt})
+    write_sequence(gt_root / "fam_x", {1: gt})
+    write_bins(pred_root / "a" / "deep" / "seq", {1: gt})
+    write_bins(pred_root / "fam_x", {1: gt})
+    assert [p.name for p in find_sequences(gt_root)] == ["seq", "fam_x"]
+    result = evaluate_dataset(pred_root, gt_root)
+    assert {s.name: s.category for s in result.sequences} == {"seq": "deep", "fam_x": "fam"}
+
+
+def test_dataset_missing_sequence_prediction(tmp_path):
+    gt_root, pred_root = tmp_path / "gt", tmp_path / "pred"
+    write_sequence(gt_root / "c" / "s1", {1: GT3})
+    write_sequence(gt_root / "c" / "s2", {1: GT3})
+    write_bins(pred_root / "s1", {1: GT3})
+    with pytest.raises(InputError, match=r"1 of 2 sequences \(c/s2\)"):
+        evaluate_dataset(pred_root, gt_root)
+    result = evaluate_dataset(pred_root, gt_root, allow_missing=True)
+    assert result.sequences[1].missing == [1] and result.sequences[1].metrics.recall == 0.0
+
+
+def test_not_a_sequence(tmp_path):
+    with pytest.raises(InputError, match="groundtruth"):
+        open_ground_truth(tmp_path)
+    with pytest.raises(InputError, match="no CDnet sequences"):
+        evaluate(tmp_path, tmp_path)
+
+
+TRAFFIC = "real/CDnet2014_cameraJitter_traffic"
+TRAFFIC_FRAMES = (960, 1000, 1100, 1480, 1540)  # inside the temporal ROI, all five labels but 85
+
+
+def test_real_cdnet_ground_truth_scores_itself_perfectly(shared_data, tmp_path):
+    source = shared_data / TRAFFIC
+    gt = tmp_path / "traffic"
+    (gt / "groundtruth").mkdir(parents=True)
+    shutil.copy(source / "temporalROI.txt", gt)
+    shutil.copy(source / "ROI.bmp", gt)  # the real, malformed one (352x240)
+    expected = Counts()
+    masks = {}
+    for n in (899,) + TRAFFIC_FRAMES:  # 899: all 85, outside the temporal ROI
+        name = f"gt{n:06d}.png"
+        shutil.copy(source / "groundtruth" / name, gt / "groundtruth")
+        labels = cv2.imread(str(source / "groundtruth" / name), cv2.IMREAD_GRAYSCALE)
+        masks[n] = np.where(labels == 255, 255, 0).astype(np.uint8)
+        if n in TRAFFIC_FRAMES:
+            counted = (labels == 0) | (labels == 50) | (labels == 255)
+            expected += Counts(tp=int((labels == 255).sum()), fp=0, fn=0,
+                               tn=int((counted & (labels != 255)).sum()))
+    pred = write_bins(tmp_path / "pred", masks)
+    with pytest.raises(InputError, match="352x240"):
+        evaluate_sequence(pred, gt)
+    result = evaluate_sequence(pred, gt, ignore_roi_bmp=True)
+    assert result.n_frames == len(TRAFFIC_FRAMES)
+    assert result.counts == expected
+    assert result.counts.total < len(TRAFFIC_FRAMES) * 320 * 240  # the 170 pixels left out
+    m = result.metrics
+    assert (m.recall, m.specificity, m.precision, m.f_measure) == (1.0, 1.0, 1.0, 1.0)
+    assert (m.fpr, m.fnr, m.pwc) == (0.0, 0.0, 0.0)
+
+
+def test_python_bool_masks_and_bad_dtype(hand_case):
+    _, gt = hand_case
+    as_bool = {2: PRED2 > 127, 3: PRED3 > 127}
+    assert evaluate_sequence(as_bool, gt).counts == HAND_COUNTS
+    with pytest.raises(InputError, match="float64"):
+        evaluate_sequence({2: PRED2 / 255.0, 3: PRED3 / 255.0}, gt)

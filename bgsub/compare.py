@@ -12,7 +12,7 @@ The input is one of
 * a dataset root holding several such sequences (``root/NAME/`` or ``root/CATEGORY/NAME/``):
   one row per sequence and method, then per-family means and the mean over families, averaged
   the CDnet way (:class:`bgsub.evaluation.DatasetResult`); the family of ``root/NAME`` is the
-  part of ``NAME`` before its last ``_`` (``BMS26_cars1`` -> ``BMS26``), of
+  part of ``NAME`` before its first ``_`` (``BMS26_cars1`` -> ``BMS26``), of
   ``root/CATEGORY/NAME`` it is ``CATEGORY``;
 * anything :func:`bgsub.sources.open_source` reads (video, image folder, glob), with optional
   ground truth given separately.

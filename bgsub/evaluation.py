@@ -25,7 +25,7 @@ Ground truth (a dataset)
     A root folder searched at any depth; a folder is a sequence if it holds a ``groundtruth/``
     subfolder (its subfolders are not searched further). A sequence's *category* is the name of
     the folder holding it (``root/cameraJitter/traffic`` -> ``cameraJitter``); a sequence lying
-    directly in the root has the family of its name instead: the part before the last ``_``
+    directly in the root has the family of its name instead: the part before the first ``_``
     (``BMS26_cars1`` -> ``BMS26``, ``static_s1`` -> ``static``, a name without ``_`` is its own
     family).
 
@@ -653,7 +653,7 @@ def category_of(rel_path: PathLike) -> str:
     if len(parts) >= 2:
         return parts[-2]
     name = parts[-1]
-    return name.rsplit("_", 1)[0] if "_" in name.strip("_") else name
+    return name.split("_", 1)[0] if "_" in name.strip("_") else name
 
 
 def evaluate_sequence(

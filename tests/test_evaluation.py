@@ -238,6 +238,9 @@ def test_categories():
     assert category_of("pan-zoom_s12") == "pan-zoom"
     assert category_of("cameraJitter/traffic") == "cameraJitter"
     assert category_of("highway") == "highway"
+    # The family is the prefix before the first '_', so a long name keeps its dataset's family.
+    assert category_of("CDnet2014_cameraJitter_traffic") == "CDnet2014"
+    assert category_of("DAVIS2016_car-roundabout") == "DAVIS2016"
 
 
 def test_dataset_averaging_the_cdnet_way(tmp_path):

@@ -17,7 +17,7 @@ F-measure), scored exactly as `bgsub eval` scores the masks written here.
 INPUT is a CDnet sequence folder (input/ + groundtruth/; its ground truth is used), a dataset
 root holding several such sequences (root/NAME/ or root/CATEGORY/NAME/: one row per sequence and
 method, then per-family means and the mean over families; the family of root/NAME is the part of
-NAME before its last '_', e.g. BMS26_cars1 -> BMS26), or any video / image folder / glob (with
+NAME before its first '_', e.g. BMS26_cars1 -> BMS26), or any video / image folder / glob (with
 --gt for scores).
 
 REPORT_DIR receives report.txt (also printed), report.csv and report.json; the masks of each

@@ -20,7 +20,7 @@ optional temporalROI.txt and ROI.bmp), or a dataset root holding several sequenc
 then PRED is a folder holding one prediction per sequence (NAME/ or NAME.mkv, or the same
 relative path as in the dataset, e.g. cameraJitter/traffic/), and the results are averaged the
 CDnet way: a category is the mean of its sequences, overall is the mean of the categories.
-The category of root/CATEGORY/NAME is CATEGORY; of root/NAME, the part of NAME before its last
+The category of root/CATEGORY/NAME is CATEGORY; of root/NAME, the part of NAME before its first
 '_' (BMS26_cars1 -> BMS26).
 
 Only frames inside the temporal ROI count, and only pixels inside ROI.bmp whose label is 0 or 50

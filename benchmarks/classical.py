@@ -8,8 +8,8 @@ Run from the repository root::
 What it does:
 
 1. Renders the synthetic scenes (``bgsub.samples.generate_scene``, the same writer as
-   ``bgsub samples DIR --seed S``, default scene parameters: 320x240, 100 frames, temporal ROI
-   2-100) for every category and seed into ``--out`` (outside the repository).
+   ``bgsub samples DIR --seed S``, default scene parameters) for every category and seed into
+   ``--out`` (outside the repository).
 2. Runs each engine with its default parameters over each scene's ``input/`` JPEG frames and
    scores the masks with :func:`bgsub.evaluation.evaluate_sequence` (temporal ROI; label 170 is
    ignored). Per-category F is the mean over seeds (CDnet averaging). A second, diagnostic
@@ -112,7 +112,8 @@ def print_scene_scores(scenes: Sequence[Path], args: argparse.Namespace,
     results = score_scenes(scenes, warmup_first=args.warmup + 1)
     report["scenes"] = {name: {k: r.to_dict() for k, r in by.items()}
                         for name, by in results.items()}
-    for key, title in (("roi", "scored over the temporal ROI (frames 2-100)"),
+    roi = (scenes[0] / "temporalROI.txt").read_text().split()
+    for key, title in (("roi", f"scored over the temporal ROI (frames {roi[0]}-{roi[1]})"),
                        ("warm", f"scored from frame {args.warmup + 1} on (diagnostic: the "
                                 f"first {args.warmup} frames as warm-up)")):
         print(f"## CDnet F-measure per category, {title}; mean over seeds "

@@ -699,8 +699,8 @@ def compare_methods(
         Engine parameters.
     skip_first : bool
         Do not score the first processed frame (the engines have seen nothing before it).
-        Unlike ``bgsub eval --skip-first``, which drops the first frame of the temporal ROI,
-        this only matters when that frame is the first processed one.
+        When processing starts at frame 1 this is ``bgsub eval --skip-first`` (which leaves out
+        frame 1); with ``start`` it leaves out the first frame actually processed.
     ignore_roi_bmp : bool, optional
         Ignore ``ROI.bmp``; default: ignored for dataset roots (the real CDnet traffic ROI.bmp
         has the wrong size), used for a single sequence.

@@ -381,7 +381,12 @@ class GatedRBM:
 
 
 def _shipped_path(name: str):
-    return resources.files("bgsub.models").joinpath(f"{name}.npz")
+    try:
+        folder = resources.files("bgsub.models")
+    except ModuleNotFoundError:
+        # Run from a source checkout that was never pip-installed: models/ sits beside bgsub/.
+        folder = Path(__file__).resolve().parents[1] / "models"
+    return folder.joinpath(f"{name}.npz")
 
 
 def load_model(name_or_path: Union[str, Path, GatedRBM]) -> GatedRBM:

@@ -19,10 +19,16 @@ from typing import Any, List, Optional
 
 import cv2
 import numpy as np
-from numpy.lib.stride_tricks import sliding_window_view
+from numpy.lib.stride_tricks import as_strided
 
-from bgsub.global_motion import GlobalMotion, apply_homography, fit_global_motion
-from bgsub.tiling import TEXTURE_SCALE, patch_grid, texture_map, to_gray
+from bgsub.global_motion import (
+    GlobalMotion,
+    apply_homography,
+    fit_global_motion,
+    is_affine,
+    is_identity,
+)
+from bgsub.tiling import TEXTURE_SCALE, patch_grid, to_gray
 
 __all__ = [
     "FlowEstimate",
@@ -103,7 +109,8 @@ def model_range(model: Any) -> int:
     return 3
 
 
-def patch_motion(model: Any, x_raw: np.ndarray, y_raw: np.ndarray, *, max_disp: int) -> tuple:
+def patch_motion(model: Any, x_raw: np.ndarray, y_raw: np.ndarray, *, max_disp: int,
+                 x_features: Any = None) -> tuple:
     """One batched gated-RBM readout.
 
     Parameters
@@ -112,6 +119,8 @@ def patch_motion(model: Any, x_raw: np.ndarray, y_raw: np.ndarray, *, max_disp: 
         ``patch_motion(x_raw, y_raw, *, max_disp) -> (disp, confidence, flat)`` of this contract
     x_raw, y_raw : (N, p*p) float32 raw patches in [0, 1]
     max_disp : int
+    x_features : bgsub.readout.PatchFeatures, optional
+        ``x_raw`` already projected (GatedRBM only; reused across reads of the same patches).
 
     Returns
     -------
@@ -126,24 +135,29 @@ def patch_motion(model: Any, x_raw: np.ndarray, y_raw: np.ndarray, *, max_disp: 
         return model.patch_motion(x_raw, y_raw, max_disp=max_disp)
     from bgsub import readout
 
-    x, y, flat = model.prepare(x_raw, y_raw)
-    disp, conf = readout.patch_displacements(model, x, y, max_disp=max_disp)
-    conf = np.where(flat, 0.0, conf).astype(np.float32)
-    return np.asarray(disp, np.float32), conf, flat
+    # prepare() + patch_displacements() fused (same result to float32 rounding).
+    return readout.raw_patch_motion(model, x_raw, y_raw, max_disp=max_disp, x_features=x_features)
 
 
 def _warp_back(image: np.ndarray, matrix: np.ndarray) -> np.ndarray:
     """``out(x) = image(matrix @ x)``: the second frame resampled into the first frame's grid."""
     h, w = image.shape[:2]
-    return cv2.warpPerspective(image, matrix, (w, h), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                               borderMode=cv2.BORDER_REPLICATE)
+    m = np.asarray(matrix, np.float64)
+    flags = cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP
+    if is_affine(m):
+        # Affine pre-warps (the coarse levels fit affine motion): the same map, cheaper.
+        return cv2.warpAffine(image, m[:2] / m[2, 2], (w, h), flags=flags,
+                              borderMode=cv2.BORDER_REPLICATE)
+    return cv2.warpPerspective(image, m, (w, h), flags=flags, borderMode=cv2.BORDER_REPLICATE)
 
 
 def _scaled(matrix: np.ndarray, factor: float) -> np.ndarray:
     """The homography ``matrix`` (full-resolution pixels) in pixels scaled by ``factor``."""
-    s = np.diag([factor, factor, 1.0])
-    si = np.diag([1.0 / factor, 1.0 / factor, 1.0])
-    return s @ matrix @ si
+    # diag(f, f, 1) @ matrix @ diag(1/f, 1/f, 1), written out.
+    out = np.array(matrix, dtype=np.float64)
+    out[:2, 2] *= factor
+    out[2, :2] /= factor
+    return out
 
 
 def auto_levels(shape: tuple, *, max_motion: float, model_disp: int, patch_size: int) -> int:
@@ -177,6 +191,7 @@ def estimate_flow(
     search: int = 0,
     coarse_iterations: int = 1,
     finest: int = 0,
+    refine_stride: Optional[int] = None,
 ) -> FlowEstimate:
     """Patch displacements between two frames, coarse to fine.
 
@@ -221,6 +236,11 @@ def estimate_flow(
         Pyramid level of the final readout (0 = full resolution). On blurry footage the model
         reads motion better on a reduced image; results are still in full-resolution pixels
         (patch centres on a grid of ``stride`` there).
+    refine_stride : int, optional
+        Grid step (full-resolution pixels) of the finest level's readouts before the last one
+        (``iterations > 1``), which only refine the pre-warp; default ``stride``. A coarser grid
+        (e.g. ``2 * stride``: a quarter of the patches) is cheaper and fits the pre-warp about
+        as well; the last readout always uses ``stride``.
     search : int
         Also start the coarsest level from shifts on a ``(2 search + 1)^2`` grid (steps of
         about the model's range at that level), for shaking cameras whose motion the previous
@@ -276,8 +296,18 @@ def estimate_flow(
     plan = [(lvl, cstride) for lvl in levels_plan if lvl > fine
             for _ in range(max(1, int(coarse_iterations)))]
     fine_stride = stride if fine == 0 else max(4, int(round(stride / 2**fine)))
-    plan += [(fine, fine_stride)] * (iterations - 1)
+    pre_stride = fine_stride
+    if refine_stride is not None:
+        pre_stride = max(4, int(round(int(refine_stride) / 2**fine)))
+    plan += [(fine, pre_stride)] * (iterations - 1)
     cache: dict = {}
+    if iterations > 1 and pre_stride != fine_stride and pre_stride % fine_stride == 0 \
+            and max_patches is None and not hasattr(model, "patch_motion"):
+        # The refining grid is every (pre_stride / fine_stride)-th patch of the final grid: cut
+        # and project the final grid's first-frame patches once and take the refining subset.
+        _level(pyr1[fine], pyr1[fine], np.eye(3), model, p, fine_stride, rng, min_texture,
+               max_patches, cache=cache, read=False)
+        _subgrid(cache, pyr1[fine].shape, p, fine_stride, pre_stride, min_texture, model)
     for lvl, step in plan:
         factor = 0.5**lvl
         est = _level(pyr1[lvl], pyr2[lvl], _scaled(h_est, factor), model, p, step, rng,
@@ -317,11 +347,17 @@ def _level(g1, g2, h_est, model, p, stride, rng, min_texture, max_patches, *,
         centres, grid_shape, tex, pick, x_pick = cache[key]
         cache["pick"], cache["x"] = pick, x_pick
     else:
-        centres, grid_shape = patch_grid(g1.shape, patch_size=p, stride=stride)
+        centres, grid_shape = _grid(g1.shape, p, stride)
         n = len(centres)
         tex = np.zeros(n, np.float32)
         if n:
-            tmap = texture_map(g1, window=p)
+            # The texture map of a level serves every grid cut from it (kept in cache).
+            tkey = ("texture", g1.shape)
+            tmap = cache.get(tkey) if cache is not None else None
+            if tmap is None:
+                tmap = _texture_map(g1, p)
+                if cache is not None:
+                    cache[tkey] = tmap
             ci = centres.astype(np.intp)  # centres are integers for odd p
             e = tmap[ci[:, 1], ci[:, 0]]
             tex = (e / (e + np.float32(TEXTURE_SCALE))).astype(np.float32)
@@ -329,7 +365,7 @@ def _level(g1, g2, h_est, model, p, stride, rng, min_texture, max_patches, *,
         if max_patches is not None and len(pick) > max_patches:
             pick = pick[np.argsort(-tex[pick], kind="stable")[:max_patches]]
             pick.sort()
-        x_pick = _patches_at(g1, centres[pick], p)
+        x_pick = _patches_at(g1, centres[pick], p, stride=stride if len(pick) == n else 0)
         if cache is not None:
             cache[key] = (centres, grid_shape, tex, pick, x_pick)
             cache["pick"], cache["x"] = pick, x_pick
@@ -339,9 +375,10 @@ def _level(g1, g2, h_est, model, p, stride, rng, min_texture, max_patches, *,
     valid = np.zeros(n, bool)
     beyond = np.zeros(n, bool)
     if len(pick) and read:
-        warped = g2 if np.allclose(h_est, np.eye(3)) else _warp_back(g2, h_est)
-        y_pick = _patches_at(warped, centres[pick], p)
-        d, c, flat = patch_motion(model, x_pick, y_pick, max_disp=rng)
+        warped = g2 if is_identity(h_est) else _warp_back(g2, h_est)
+        y_pick = _patches_at(warped, centres[pick], p, stride=stride if len(pick) == n else 0)
+        xf = _x_features(model, x_pick, cache, key)
+        d, c, flat = patch_motion(model, x_pick, y_pick, max_disp=rng, x_features=xf)
         residual[pick] = d
         conf[pick] = c
         # A reading at the edge of the range may be a larger motion clipped: not trusted.
@@ -366,10 +403,13 @@ def _best_start(g1, g2, cands, factor, model, p, stride, rng, min_texture, max_p
     if len(pick) == 0:
         return fallback
     scaled = [_scaled(c, factor) for c in cands]
-    ys = [_patches_at(_warp_back(g2, h) if not np.allclose(h, np.eye(3)) else g2,
+    ys = [_patches_at(_warp_back(g2, h) if not is_identity(h) else g2,
                       centres[pick], p) for h in scaled]
+    xf = _x_features(model, x_pick, None, None)
+    if xf is not None:
+        xf = xf.take(np.tile(np.arange(len(pick)), len(cands)))
     d, c, flat = patch_motion(model, np.tile(x_pick, (len(cands), 1)), np.concatenate(ys),
-                              max_disp=rng)
+                              max_disp=rng, x_features=xf)
     best, best_h = -1, fallback
     n, k = len(centres), len(pick)
     for i, h in enumerate(scaled):
@@ -386,15 +426,84 @@ def _best_start(g1, g2, cands, factor, model, p, stride, rng, min_texture, max_p
     return best_h
 
 
-def _patches_at(image: np.ndarray, centres: np.ndarray, p: int) -> np.ndarray:
+def _subgrid(cache: dict, shape: tuple, p: int, stride: int, sub_stride: int,
+             min_texture: float, model: Any) -> None:
+    """Fill ``cache`` for the ``sub_stride`` grid from the cached ``stride`` grid it is a subset
+    of (same origin; ``sub_stride`` a multiple of ``stride``), without recomputing anything."""
+    centres, (rows, cols), tex, pick, x_pick = cache[(shape, stride)]
+    xf = _x_features(model, x_pick, cache, (shape, stride))
+    k = sub_stride // stride
+    sub = (np.arange(0, rows, k)[:, None] * cols + np.arange(0, cols, k)[None, :]).ravel()
+    sub_centres, sub_shape = _grid(shape, p, sub_stride)
+    sub_tex = tex[sub]
+    sub_pick = np.flatnonzero(sub_tex >= min_texture)
+    pos = np.searchsorted(pick, sub[sub_pick])  # every subset pick is a pick of the full grid
+    cache[(shape, sub_stride)] = (sub_centres, sub_shape, sub_tex, sub_pick, x_pick[pos])
+    if xf is not None:
+        cache[("xf", (shape, sub_stride))] = xf.take(pos)
+
+
+def _x_features(model: Any, x_pick: np.ndarray, cache: Optional[dict], key: Any) -> Any:
+    """The first frame's patches projected onto a GatedRBM's filters, computed once per level
+    and kept in ``cache`` (every readout of a level pairs the same first-frame patches with a
+    differently pre-warped second frame). None for other patch-motion models."""
+    if hasattr(model, "patch_motion") or len(x_pick) == 0:
+        return None
+    from bgsub.readout import patch_features
+
+    if cache is not None and ("xf", key) in cache:
+        return cache[("xf", key)]
+    xf = patch_features(model, x_pick, side="x")
+    if cache is not None:
+        cache[("xf", key)] = xf
+    return xf
+
+
+def _texture_map(gray: np.ndarray, p: int) -> np.ndarray:
+    """:func:`bgsub.tiling.texture_map` (window ``p``) wherever a ``p x p`` box fits inside the
+    image, i.e. at every patch centre, in one OpenCV call: ``cornerMinEigenVal`` computes the
+    same smaller structure-tensor eigenvalue from Sobel gradients scaled by ``1 / (4 p)`` and
+    box *sums*, which is 4 times ``texture_map``'s (gradients / 8, box means). (Near the border
+    the two differ: ``texture_map`` reflects the box, this reflects with 101.)"""
+    gray = np.asarray(gray, dtype=np.float32)
+    tmap = cv2.cornerMinEigenVal(gray, p, ksize=3)
+    tmap *= np.float32(0.25)
+    return np.maximum(tmap, 0.0, out=tmap)
+
+
+_GRIDS: dict = {}
+
+
+def _grid(shape: tuple, p: int, stride: int) -> tuple:
+    """:func:`bgsub.tiling.patch_grid`, memoised (the same few grids every frame); the centres
+    are read-only."""
+    key = (int(shape[0]), int(shape[1]), int(p), int(stride))
+    if key not in _GRIDS:
+        if len(_GRIDS) > 64:
+            _GRIDS.clear()
+        centres, grid_shape = patch_grid(shape, patch_size=p, stride=stride)
+        centres.setflags(write=False)
+        _GRIDS[key] = (centres, grid_shape)
+    return _GRIDS[key]
+
+
+def _patches_at(image: np.ndarray, centres: np.ndarray, p: int, *, stride: int = 0) -> np.ndarray:
     """The ``p x p`` patches centred at integer ``centres``: ``(n, p*p) float32`` (one gather
-    from a strided view, no loop)."""
+    from a strided view, no loop). ``stride > 0`` says ``centres`` is the whole
+    :func:`~bgsub.tiling.patch_grid` of ``image`` with that stride: one strided slice then."""
     if len(centres) == 0:
         return np.zeros((0, p * p), np.float32)
-    windows = sliding_window_view(image, (p, p))
+    image = np.ascontiguousarray(image, dtype=np.float32)
+    h, w = image.shape
+    s0, s1 = image.strides
+    # The same view as sliding_window_view(image, (p, p)), without its per-call overhead.
+    windows = as_strided(image, shape=(h - p + 1, w - p + 1, p, p), strides=(s0, s1, s0, s1),
+                         writeable=False)
+    if stride > 0:
+        return np.ascontiguousarray(windows[::stride, ::stride]).reshape(len(centres), p * p)
     half = p // 2
     ci = centres.astype(np.intp) - half
-    return windows[ci[:, 1], ci[:, 0]].reshape(len(ci), p * p).astype(np.float32, copy=False)
+    return windows[ci[:, 1], ci[:, 0]].reshape(len(ci), p * p)
 
 
 def _fit_level(est: dict, model: str, threshold: float, shape: tuple) -> GlobalMotion:

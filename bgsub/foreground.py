@@ -27,7 +27,7 @@ from typing import Optional
 import cv2
 import numpy as np
 
-from bgsub.global_motion import apply_homography
+from bgsub.global_motion import apply_homography, is_affine, is_identity
 
 __all__ = [
     "BackgroundParams",
@@ -89,6 +89,9 @@ class CompensatedBackground:
         self.mean: Optional[np.ndarray] = None  # (H, W, C) float32, 0-255
         self.var: Optional[np.ndarray] = None  # (H, W, C) float32
         self.age: Optional[np.ndarray] = None  # (H, W) float32
+        # (frame, frame as float, frame - mean) from the last score(), reused by update() when
+        # it is given the same frame object and the model has not changed since.
+        self._diff: Optional[tuple] = None
 
     @property
     def initialised(self) -> bool:
@@ -105,6 +108,7 @@ class CompensatedBackground:
         self.mean = f.copy()
         self.var = np.full_like(f, self.params.init_std**2)
         self.age = np.zeros(f.shape[:2], np.float32)
+        self._diff = None
 
     def warp(self, matrix: np.ndarray) -> None:
         """Move the model into the current frame's coordinates.
@@ -117,16 +121,16 @@ class CompensatedBackground:
         Pixels of the current frame that the previous one did not see get age 0 (their mean and
         variance are then replaced by the current frame in :meth:`update`).
         """
-        if self.mean is None or np.allclose(matrix, np.eye(3), atol=1e-9):
+        if self.mean is None or is_identity(matrix, atol=1e-9):
             return
         h, w = self.age.shape
         flags = cv2.INTER_LINEAR
+        self._diff = None
         self.mean = _warp(self.mean, matrix, (w, h), flags, cv2.BORDER_REPLICATE)
         self.var = _warp(self.var, matrix, (w, h), flags, cv2.BORDER_REPLICATE)
         # Age with a zero border: uncovered pixels have no history. Linear interpolation lets
         # a pixel half-inside inherit a lower age, which is the cautious side.
-        self.age = cv2.warpPerspective(self.age, matrix, (w, h), flags=flags,
-                                       borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
+        self.age = _warp(self.age, matrix, (w, h), flags, cv2.BORDER_CONSTANT)
 
     def score(self, frame: np.ndarray) -> np.ndarray:
         """How far ``frame`` is from the background, in units of the decision threshold.
@@ -145,24 +149,32 @@ class CompensatedBackground:
         f = self._as_float(frame)
         if self.mean is None:
             return np.zeros(f.shape[:2], np.float32)
+        signed = f - self.mean
         if p.envelope > 1:
             k = np.ones((p.envelope, p.envelope), np.uint8)
             lo = _channels(cv2.erode(self.mean, k), f.shape[2])
             hi = _channels(cv2.dilate(self.mean, k), f.shape[2])
             diff = np.maximum(np.maximum(f - hi, lo - f), 0.0)
+            sq = np.multiply(diff, diff, out=diff)
+            self._diff = (frame, f, signed, None)
         else:
-            diff = np.abs(f - self.mean)
-        # diff / max(k * std, min_diff) == min(diff / (k std), diff / min_diff).
-        denom = np.sqrt(self.var)
-        denom *= p.k_sigma
-        np.maximum(denom, max(p.min_diff, p.k_sigma * p.min_std), out=denom)
-        ratio = np.divide(diff, denom, out=diff)
-        out = ratio[:, :, 0]
-        for c in range(1, ratio.shape[2]):
-            out = np.maximum(out, ratio[:, :, c])
-        out = np.array(out, dtype=np.float32)  # own contiguous copy
+            sq = signed * signed
+            self._diff = (frame, f, signed, sq)  # update() reuses both
+        # diff / max(k * std, min_diff) == min(diff / (k std), diff / min_diff); compared in
+        # squares (no abs, no sqrt of the variance) and the root taken of the channel maximum.
+        floor = max(p.min_diff, p.k_sigma * p.min_std)
+        denom = self.var * np.float32(p.k_sigma * p.k_sigma)
+        np.maximum(denom, np.float32(floor * floor), out=denom)
+        ratio = np.divide(sq, denom, out=denom)
+        if ratio.shape[2] == 1:
+            out = np.array(ratio[:, :, 0], dtype=np.float32)  # own contiguous copy
+        else:
+            out = np.maximum(ratio[:, :, 0], ratio[:, :, 1])
+            for c in range(2, ratio.shape[2]):
+                np.maximum(out, ratio[:, :, c], out=out)
+        np.sqrt(out, out=out)
         out[self.age < p.min_age] = 0.0
-        return out.astype(np.float32, copy=False)
+        return out
 
     def update(self, frame: np.ndarray, fgmask: Optional[np.ndarray] = None,
                learning_rate: float = -1.0) -> None:
@@ -177,25 +189,41 @@ class CompensatedBackground:
             Overrides ``alpha`` when in [0, 1] (OpenCV's convention: negative = own rate).
         """
         p = self.params
-        f = self._as_float(frame)
+        cached, self._diff = self._diff, None
+        sq = None
+        if cached is not None and cached[0] is frame and self.mean is not None:
+            # score() of this frame: d = f - mean (and its square), still current.
+            f, d, sq = cached[1], cached[2], cached[3]
+        else:
+            f = self._as_float(frame)
+            d = None
         if self.mean is None or self.mean.shape != f.shape:
             self.reset(f)
             self.age[:] = 1.0
             return
+        if d is None:
+            d = f - self.mean
         alpha = p.alpha if not 0.0 <= learning_rate <= 1.0 else learning_rate
-        rate = np.maximum(1.0 / (self.age + 1.0), alpha).astype(np.float32)
+        # rate = max(1 / (age + 1), alpha), in place (these are whole-frame float32 arrays).
+        rate = self.age + np.float32(1.0)
+        np.reciprocal(rate, out=rate)
+        np.maximum(rate, np.float32(alpha), out=rate)
         if fgmask is not None:
             fg = np.asarray(fgmask).astype(bool)
-            rate = np.where(fg & (self.age >= p.min_age), np.float32(p.fg_alpha), rate)
+            np.copyto(rate, np.float32(p.fg_alpha), where=fg & (self.age >= p.min_age))
         r = rate[:, :, None]
-        d = f - self.mean
-        self.mean += r * d
+        d2 = np.multiply(d, d) if sq is None else sq
+        d *= r
+        self.mean += d
         # Variance of background pixels only (with the clipped residual): a passing object must
         # not inflate the spread and blind the model.
-        d2 = np.minimum(d * d, (4.0 * p.init_std) ** 2)
-        self.var += r * (d2 - self.var)
-        np.maximum(self.var, p.min_std**2, out=self.var)
-        self.age = np.minimum(self.age + 1.0, p.max_age)
+        np.minimum(d2, np.float32((4.0 * p.init_std) ** 2), out=d2)
+        d2 -= self.var
+        d2 *= r
+        self.var += d2
+        np.maximum(self.var, np.float32(p.min_std**2), out=self.var)
+        self.age += np.float32(1.0)
+        np.minimum(self.age, np.float32(p.max_age), out=self.age)
 
     def background_image(self) -> Optional[np.ndarray]:
         """The mean as uint8 ((H, W, 3) or (H, W)), or None before the first frame."""
@@ -210,8 +238,19 @@ def _channels(a: np.ndarray, c: int) -> np.ndarray:
 
 
 def _warp(img: np.ndarray, matrix: np.ndarray, size: tuple, flags: int, border: int) -> np.ndarray:
-    out = cv2.warpPerspective(img, matrix, size, flags=flags, borderMode=border)
-    return _channels(out, img.shape[2] if img.ndim == 3 else 1)
+    if img.ndim == 3 and img.shape[2] == 3:
+        # OpenCV's 4-channel bilinear warp is much faster than its 3-channel one and gives the
+        # same values per channel: go through BGRA.
+        out = _warp(cv2.cvtColor(img, cv2.COLOR_BGR2BGRA), matrix, size, flags, border)
+        return cv2.cvtColor(out, cv2.COLOR_BGRA2BGR)
+    m = np.asarray(matrix, np.float64)
+    if is_affine(m):
+        # An affine motion (translation, similarity, affine): warpAffine is the same map, cheaper.
+        out = cv2.warpAffine(img, m[:2] / m[2, 2], size, flags=flags, borderMode=border,
+                             borderValue=0.0)
+    else:
+        out = cv2.warpPerspective(img, m, size, flags=flags, borderMode=border, borderValue=0.0)
+    return _channels(out, img.shape[2] if img.ndim == 3 else 1) if img.ndim == 3 else out
 
 
 def flow_violation_map(
@@ -265,10 +304,9 @@ def flow_violation_map(
     gx = np.clip((cur[:, 0] // cell).astype(np.intp), 0, gw - 1)
     gy = np.clip((cur[:, 1] // cell).astype(np.intp), 0, gh - 1)
     ok = (wt > 0) & np.isfinite(err)
-    num = np.zeros((gh, gw), np.float32)
-    den = np.zeros((gh, gw), np.float32)
-    np.add.at(num, (gy[ok], gx[ok]), (wt * viol)[ok])
-    np.add.at(den, (gy[ok], gx[ok]), wt[ok])
+    cells = gy[ok] * gw + gx[ok]
+    num = np.bincount(cells, (wt * viol)[ok], minlength=gh * gw).reshape(gh, gw).astype(np.float32)
+    den = np.bincount(cells, wt[ok], minlength=gh * gw).reshape(gh, gw).astype(np.float32)
     if radius > 0:
         k = (2 * radius + 1, 2 * radius + 1)
         num = cv2.boxFilter(num, -1, k, normalize=False, borderType=cv2.BORDER_CONSTANT)
@@ -293,18 +331,31 @@ def clean_mask(mask: np.ndarray, *, min_area: int = 30, close: int = 5) -> np.nd
     -------
     (H, W) uint8, 0/255
     """
-    m = (np.asarray(mask) > 0).astype(np.uint8) * 255
-    m = cv2.morphologyEx(m, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
+    mask = np.asarray(mask)
+    # Work on 0/1 (a bool mask is reinterpreted, not converted) and scale to 0/255 once.
+    m = mask.view(np.uint8) if mask.dtype == bool else (mask > 0).view(np.uint8)
+    m = cv2.morphologyEx(m, cv2.MORPH_OPEN, _kernel(cv2.MORPH_RECT, 3))
     if close > 1:
-        m = cv2.morphologyEx(m, cv2.MORPH_CLOSE,
-                             cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (close, close)))
-    if min_area > 1 and m.any():
+        m = cv2.morphologyEx(m, cv2.MORPH_CLOSE, _kernel(cv2.MORPH_ELLIPSE, close))
+    if min_area > 1 and cv2.countNonZero(m):
         n, labels, stats, _ = cv2.connectedComponentsWithStats(m, connectivity=8)
         small = stats[:, cv2.CC_STAT_AREA] < min_area
         small[0] = False
         if small.any():
             m[small[labels]] = 0
+    m *= 255
     return m
+
+
+_KERNELS: dict = {}
+
+
+def _kernel(shape: int, size: int) -> np.ndarray:
+    """A cached structuring element."""
+    key = (shape, size)
+    if key not in _KERNELS:
+        _KERNELS[key] = cv2.getStructuringElement(shape, (size, size))
+    return _KERNELS[key]
 
 
 def fuse_masks(
@@ -342,7 +393,12 @@ def fuse_masks(
     """
     score = bg_score
     if violation is not None and (flow_boost != 0.0 or flow_damp != 0.0):
-        centred = 2.0 * violation - 1.0
-        gain = 1.0 + flow_boost * np.maximum(centred, 0.0) + flow_damp * np.minimum(centred, 0.0)
-        score = bg_score * np.maximum(gain, 0.0)
+        # gain = 1 + boost * max(c, 0) + damp * min(c, 0), c = 2 violation - 1, clipped at 0.
+        c = np.asarray(violation, np.float32) * np.float32(2.0)
+        c -= np.float32(1.0)
+        gain = c * np.where(c > 0, np.float32(flow_boost), np.float32(flow_damp))
+        gain += np.float32(1.0)
+        np.maximum(gain, np.float32(0.0), out=gain)
+        gain *= bg_score
+        score = gain
     return clean_mask(score > threshold, min_area=min_area, close=close)

@@ -12,6 +12,7 @@ coordinates ``(x, y, 1)`` of the previous frame to the current frame.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Optional
 
@@ -26,6 +27,8 @@ __all__ = [
     "fit_global_motion",
     "apply_homography",
     "corner_error",
+    "is_identity",
+    "is_affine",
 ]
 
 #: Motion models, from the most to the least general.
@@ -75,6 +78,22 @@ def apply_homography(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
     return xyw[:, :2] / w
 
 
+_EYE = np.eye(3)
+
+
+def is_identity(matrix: np.ndarray, *, atol: float = 1e-8, rtol: float = 1e-5) -> bool:
+    """``np.allclose(matrix, np.eye(3), rtol=rtol, atol=atol)`` for a ``(3, 3)`` matrix, without
+    allclose's overhead (called several times per frame)."""
+    d = np.abs(np.asarray(matrix, np.float64) - _EYE)
+    return bool((d <= atol + rtol * _EYE).all())
+
+
+def is_affine(matrix: np.ndarray) -> bool:
+    """The ``(3, 3)`` homography's last row is ``(0, 0, c)``: an affine map (``warpAffine``)."""
+    m = np.asarray(matrix)
+    return abs(float(m[2, 0])) <= 1e-12 and abs(float(m[2, 1])) <= 1e-12 and float(m[2, 2]) != 0.0
+
+
 def corner_error(estimate: np.ndarray, truth: np.ndarray, *, width: int, height: int) -> float:
     """Mean distance in pixels between the frame corners mapped by two homographies."""
     corners = np.array([[0, 0], [width - 1, 0], [0, height - 1], [width - 1, height - 1]], float)
@@ -108,20 +127,25 @@ def _sane(matrix: np.ndarray, width: Optional[int], height: Optional[int],
     """Why ``matrix`` is not a plausible frame-to-frame camera motion, or ``""``."""
     if not np.all(np.isfinite(matrix)):
         return "degenerate fit (non-finite)"
-    a = matrix[:2, :2] / matrix[2, 2] if abs(matrix[2, 2]) > 1e-12 else None
-    if a is None:
+    # Plain float arithmetic on the 3x3 (called several times per frame; numpy's per-call
+    # overhead would dominate).
+    (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = matrix.tolist()
+    if abs(m22) <= 1e-12:
         return "degenerate fit"
-    det = float(np.linalg.det(a))
+    det = (m00 * m11 - m01 * m10) / (m22 * m22)
     if not 0.5 < det < 2.0:
         return f"degenerate fit (scale change {det:.2f})"
     if width is not None and height is not None:
-        corners = np.array([[0, 0], [width - 1, 0], [0, height - 1], [width - 1, height - 1]],
-                           float)
-        hom = matrix @ np.c_[corners, np.ones(4)].T
-        if np.any(hom[2] <= 1e-6):
-            return "degenerate fit (frame folds over)"
-        moved = hom[:2] / hom[2] - corners.T
-        if np.max(np.hypot(moved[0], moved[1])) > max_corner_shift:
+        largest = 0.0
+        for x, y in ((0.0, 0.0), (width - 1.0, 0.0), (0.0, height - 1.0),
+                     (width - 1.0, height - 1.0)):
+            w = m20 * x + m21 * y + m22
+            if w <= 1e-6:
+                return "degenerate fit (frame folds over)"
+            dx = (m00 * x + m01 * y + m02) / w - x
+            dy = (m10 * x + m11 * y + m12) / w - y
+            largest = max(largest, math.hypot(dx, dy))
+        if largest > max_corner_shift:
             return "degenerate fit (implausibly large motion)"
     return ""
 

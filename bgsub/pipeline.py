@@ -36,7 +36,96 @@ from bgsub.foreground import (
 )
 from bgsub.global_motion import GlobalMotion, apply_homography, fit_global_motion
 
-__all__ = ["MovingCameraEngine", "GrbmEngine", "CompensatedEngine", "MotionResult"]
+__all__ = ["MovingCameraEngine", "GrbmEngine", "CompensatedEngine", "MotionResult",
+           "limited_threads"]
+
+
+# ---------------------------------------------------------------------- worker threads
+#
+# One frame's work is many small matmuls (a few hundred to ~1100 patches x 169 x 200) and
+# whole-frame OpenCV calls on 320x240 images. Handing those to worker threads costs more than it
+# saves: on the shared 2-core development machine a multi-threaded OpenBLAS ran grbm at 4 frames/s
+# instead of 15-30 (its threads spin-wait for a busy core), and OpenCV's 2 threads cost ~10 % of
+# the CPU time of 1 (docs/bench-pipeline.md). So the engines run each frame with ``threads``
+# (default 1) BLAS and OpenCV threads and restore the previous settings afterwards. The settings
+# are process-wide: engines stepped concurrently from several Python threads should all use the
+# same ``threads`` value.
+
+_BLAS_SYMBOLS = (
+    ("scipy_openblas_set_num_threads64_", "scipy_openblas_get_num_threads64_"),
+    ("scipy_openblas_set_num_threads", "scipy_openblas_get_num_threads"),
+    ("openblas_set_num_threads64_", "openblas_get_num_threads64_"),
+    ("openblas_set_num_threads", "openblas_get_num_threads"),
+)
+_blas_api: Optional[tuple] = None  # (set, get) or () when not found
+
+
+def _openblas() -> tuple:
+    """``(set_num_threads, get_num_threads)`` of the OpenBLAS numpy uses, or ``()``."""
+    global _blas_api
+    if _blas_api is not None:
+        return _blas_api
+    _blas_api = ()
+    import ctypes
+    import glob
+    import os
+
+    # numpy's own first: wheels bundle scipy-openblas in numpy.libs (scipy may load another).
+    libs = os.path.join(os.path.dirname(np.__file__), os.pardir, "numpy.libs")
+    candidates = sorted(glob.glob(os.path.join(libs, "*openblas*")))
+    try:  # Linux: an OpenBLAS numpy was linked against elsewhere (opening it again shares it)
+        with open("/proc/self/maps") as maps:
+            candidates += sorted({line.split()[-1] for line in maps
+                                  if "openblas" in line.lower()
+                                  and line.split()[-1].startswith("/")})
+    except OSError:
+        pass
+    for path in candidates:
+        try:
+            lib = ctypes.CDLL(path)
+        except OSError:
+            continue
+        for set_name, get_name in _BLAS_SYMBOLS:
+            if hasattr(lib, set_name) and hasattr(lib, get_name):
+                setter, getter = getattr(lib, set_name), getattr(lib, get_name)
+                setter.argtypes, setter.restype = [ctypes.c_int], None
+                getter.argtypes, getter.restype = [], ctypes.c_int
+                _blas_api = (setter, getter)
+                return _blas_api
+    return _blas_api
+
+
+class limited_threads:
+    """Context manager: at most ``n`` OpenBLAS and OpenCV worker threads inside, the previous
+    counts restored on exit (``n <= 0``: change nothing). Without an OpenBLAS that exposes
+    ``openblas_set_num_threads`` only OpenCV is limited (set ``OPENBLAS_NUM_THREADS=1``)."""
+
+    def __init__(self, n: int) -> None:
+        self.n = int(n)
+        self._saved: Optional[tuple] = None
+
+    def __enter__(self) -> "limited_threads":
+        if self.n > 0:
+            blas = _openblas()
+            old_blas = blas[1]() if blas else None
+            old_cv = cv2.getNumThreads()
+            if blas and old_blas > self.n:
+                blas[0](self.n)
+            if old_cv > self.n:
+                cv2.setNumThreads(self.n)
+            self._saved = (old_blas, old_cv)
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        if self._saved is None:
+            return
+        old_blas, old_cv = self._saved
+        self._saved = None
+        blas = _openblas()
+        if blas and old_blas is not None and old_blas > self.n:
+            blas[0](old_blas)
+        if old_cv > self.n:
+            cv2.setNumThreads(old_cv)
 
 
 @dataclass
@@ -99,6 +188,9 @@ class MovingCameraEngine(Engine):
         with the fitted motion (or more than 80 % differ) restarts the model.
     heal_below : float
         Differences where the violation map is below this are learnt at the normal rate.
+    threads : int
+        OpenBLAS and OpenCV worker threads while a frame is processed (:class:`limited_threads`;
+        0 = leave them as configured).
 
     Attributes
     ----------
@@ -125,6 +217,7 @@ class MovingCameraEngine(Engine):
         scene_cut: float = 0.5,
         heal_below: float = 0.25,
         cut_support: float = 0.35,
+        threads: int = 1,
     ) -> None:
         self.work_width = int(work_width)
         self.motion_model = motion_model
@@ -140,6 +233,7 @@ class MovingCameraEngine(Engine):
         self.scene_cut = float(scene_cut)
         self.heal_below = float(heal_below)
         self.cut_support = float(cut_support)
+        self.threads = int(threads)
         self.last_status = "ok"
         self._prev_gray: Optional[np.ndarray] = None  # (h, w) uint8 working size
         self._prev_motion: Optional[np.ndarray] = None  # last good (3, 3)
@@ -193,9 +287,10 @@ class MovingCameraEngine(Engine):
             raise InputError(f"frame size changed from {self._in_shape[1]}x{self._in_shape[0]} "
                              f"to {image.shape[1]}x{image.shape[0]}")
         self._in_shape = image.shape[:2]
-        work = self._to_work(image)
-        gray = work if work.ndim == 2 else cv2.cvtColor(work, cv2.COLOR_BGR2GRAY)
-        mask = self._step(work, gray, rate)
+        with limited_threads(self.threads):
+            work = self._to_work(image)
+            gray = work if work.ndim == 2 else cv2.cvtColor(work, cv2.COLOR_BGR2GRAY)
+            mask = self._step(work, gray, rate)
         self._last_frame, self._last_mask = work, mask
         out = self._to_input(mask)
         if fgmask is not None:
@@ -379,7 +474,7 @@ class GrbmEngine(MovingCameraEngine):
                  max_motion: float = 32.0, min_texture: float = 0.02, max_patches: int = 0,
                  iterations: int = 2, retry_below: float = 0.6, prior_levels: int = 0,
                  search: int = 0, coarse_iterations: int = 1, finest: int = 0,
-                 **kwargs: Any) -> None:
+                 refine_stride: int = 0, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         from bgsub.rbm import load_model
 
@@ -397,6 +492,13 @@ class GrbmEngine(MovingCameraEngine):
         self.search = max(0, int(search))
         self.coarse_iterations = max(1, int(coarse_iterations))
         self.finest = max(0, int(finest))
+        self.refine_stride = int(refine_stride) if refine_stride > 0 else None
+        if not hasattr(self.model, "patch_motion"):
+            # Per-model constants of the readout, once here rather than in the first frame.
+            from bgsub.flowfield import model_range
+            from bgsub.readout import precompute
+
+            precompute(self.model, max_disp=model_range(self.model))
 
     def _flow(self, prev_gray: np.ndarray, gray: np.ndarray, prior: Optional[np.ndarray]):
         levels = self.levels
@@ -409,7 +511,8 @@ class GrbmEngine(MovingCameraEngine):
                              levels=levels, max_motion=self.max_motion, prior=prior,
                              min_texture=self.min_texture, max_patches=self.max_patches,
                              iterations=self.iterations, search=self.search,
-                             coarse_iterations=self.coarse_iterations, finest=self.finest)
+                             coarse_iterations=self.coarse_iterations, finest=self.finest,
+                             refine_stride=self.refine_stride)
 
     def _flow_colour(self, shape: tuple) -> Optional[np.ndarray]:
         flow = getattr(self, "_last_flow", None)
@@ -482,6 +585,8 @@ _COMMON = {
     "close": Param(9, "morphological closing size (0 = none)"),
     "threshold": Param(1.0, "foreground where the fused score exceeds this (lower = more "
                             "foreground)"),
+    "threads": Param(1, "BLAS and OpenCV worker threads while a frame is processed (0 = as "
+                        "configured; more threads are slower for these small frames)"),
     "heal_below": Param(0.25, "background differences where the local motion agrees with the "
                               "camera (violation below this) are learnt at the normal rate "
                               "(ghost healing)"),
@@ -526,6 +631,9 @@ _GRBM_COMMON = _with_defaults(_COMMON, motion_model="similarity", flow_boost=1.5
         "iterations": Param(2, "readouts at the finest level, each re-warped by the last fit"),
         "finest": Param(0, "pyramid level of the final readout (1 = half the working size: "
                            "faster, and better on blurry footage)"),
+        "refine_stride": Param(0, "patch grid step of the finest-level readouts that only "
+                                  "refine the pre-warp (iterations > 1; 0 = stride; 2 x stride "
+                                  "is ~15 % faster, slightly less accurate)"),
         "coarse_iterations": Param(1, "readouts at each coarser pyramid level"),
         "search": Param(0, "also start the coarsest level from a (2 search + 1)^2 grid of "
                            "shifts (shaking cameras); 0 = prior and identity only"),

@@ -10,8 +10,11 @@ to a matrix from input pixel ``i`` to output pixel ``j``::
   ``i``; for translations it gives the same answer and is several times cheaper.
 * The **patch displacement** is ``argmax_d sum_i M[i, i + d]`` over displacements ``d`` with
   ``|dx|, |dy| <= max_disp``. Because the sum over ``i`` does not depend on ``h``, it is folded
-  once per model into ``C[d, f] = sum_i wxf[i, f] * wyf[i + d, f]`` and the scores of all patches
-  are one small matmul ``g @ C.T``.
+  once per model into ``C[d, f] = sum_i wxf[i, f] * wyf[i + d, f]``, and further into
+  ``whf @ C.T``, so the scores of all patches are one small matmul ``h @ (whf @ C.T)``.
+* :func:`raw_patch_motion` is the fast path the motion front end uses: the contrast
+  normalisation is folded into the projections (:func:`patch_features`), so raw patches go
+  straight to displacements with three matmuls.
 * An **analogy** (paper, Figure 7) infers ``h`` from ``(x, y)`` and applies it to a new ``x2``.
 
 All functions take model inputs (see :meth:`bgsub.rbm.GatedRBM.prepare`) as ``(N, p*p) float32``
@@ -31,6 +34,10 @@ __all__ = [
     "displacement_offsets",
     "displacement_scores",
     "patch_displacements",
+    "PatchFeatures",
+    "patch_features",
+    "raw_patch_motion",
+    "precompute",
     "max_flow_field",
     "analogy",
     "analogy_images",
@@ -133,7 +140,17 @@ def displacement_scores(
     (N, D) float32
     """
     h = _hidden(model, x, y, h)
-    return model.factor_gains(h) @ _displacement_filters(model, max_disp).T
+    return h @ _hidden_displacement_filters(model, max_disp)
+
+
+def _hidden_displacement_filters(model: GatedRBM, max_disp: int) -> np.ndarray:
+    """``whf @ C.T``: scores straight from the mapping units, ``S = h @ (whf @ C.T)``
+    (``(K, D) float32``, cached). Folding ``whf`` in saves the ``(N, F)`` factor gains."""
+    key = ("disp-h", int(max_disp))
+    if key not in model._cache:
+        c = _displacement_filters(model, max_disp).astype(np.float64)
+        model._cache[key] = np.ascontiguousarray((model.whf.astype(np.float64) @ c.T).astype(np.float32))
+    return model._cache[key]
 
 
 def patch_displacements(
@@ -171,42 +188,206 @@ def patch_displacements(
         so a true half-pixel motion (two equal neighbouring scores) is not called ambiguous.
     """
     scores = displacement_scores(model, x, y, max_disp=max_disp, h=h)
-    n = scores.shape[0]
-    r = int(max_disp)
-    side = 2 * r + 1
-    offsets = displacement_offsets(r)
+    return _peaks(scores, int(max_disp), subpixel=subpixel)
+
+
+def _peak_tables(r: int) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-displacement lookup tables for :func:`_peaks` (cached per ``r``): the offsets
+    ``(D, 2) float32``, the indices of the left/right/up/down neighbours ``(D, 4) intp`` (both
+    the index itself along an axis where ``d`` is on the window's edge), and ``near[d, e]``
+    (``e`` within the 3x3 neighbourhood of ``d``) ``(D, D) bool``."""
+    if r not in _PEAK_TABLES:
+        offsets = displacement_offsets(r)
+        side = 2 * r + 1
+        idx = np.arange(side * side)
+        row, col = np.divmod(idx, side)
+        # A peak on the window's edge along an axis gets no sub-pixel shift along it: both its
+        # neighbours there are itself (zero curvature).
+        inx = (col > 0) & (col < side - 1)
+        iny = (row > 0) & (row < side - 1)
+        nb = np.stack([np.where(inx, idx - 1, idx), np.where(inx, idx + 1, idx),
+                       np.where(iny, idx - side, idx), np.where(iny, idx + side, idx)], axis=1)
+        near = (np.abs(offsets[:, None, 0] - offsets[None, :, 0]) <= 1) & (
+            np.abs(offsets[:, None, 1] - offsets[None, :, 1]) <= 1)
+        _PEAK_TABLES[r] = (offsets.astype(np.float32), nb.astype(np.intp), near)
+    return _PEAK_TABLES[r]
+
+
+_PEAK_TABLES: dict = {}
+
+
+def _peaks(scores: np.ndarray, r: int, *, subpixel: bool = True) -> Tuple[np.ndarray, np.ndarray]:
+    """Displacement and confidence from ``(N, D)`` displacement scores (see
+    :func:`patch_displacements`). Table lookups keep this to a few passes over the scores."""
+    n, n_d = scores.shape
+    offsets, nb, near = _peak_tables(int(r))
     best = np.argmax(scores, axis=1)
-    rows = np.arange(n)
-    peak = scores[rows, best]
-    disp = offsets[best].astype(np.float32)
+    base = np.arange(n) * n_d
+    flat_scores = scores.reshape(-1)
+    peak = flat_scores[base + best]
+    disp = offsets[best]  # a copy (fancy indexing)
 
     if subpixel and r > 0:
-        grid = scores.reshape(n, side, side)  # [n, dy, dx]
-        row, col = np.divmod(best, side)
-        lo_hi = (
-            (col, grid[rows, row, np.maximum(col - 1, 0)], grid[rows, row, np.minimum(col + 1, side - 1)]),
-            (row, grid[rows, np.maximum(row - 1, 0), col], grid[rows, np.minimum(row + 1, side - 1), col]),
-        )
-        for axis, (at, lo, hi) in enumerate(lo_hi):  # axis 0: dx, 1: dy
+        # Neighbours (left, right, up, down) of each peak (see _peak_tables).
+        lrud = flat_scores[base[:, None] + nb[best]]
+        for axis in (0, 1):  # 0: dx (left/right), 1: dy (up/down)
+            lo, hi = lrud[:, 2 * axis], lrud[:, 2 * axis + 1]
             curv = lo - 2.0 * peak + hi
-            ok = (at > 0) & (at < side - 1) & (curv < 0)
+            ok = curv < 0
             shift = np.zeros(n, np.float32)
             shift[ok] = 0.5 * (lo[ok] - hi[ok]) / curv[ok]
             disp[:, axis] += np.clip(shift, -0.5, 0.5)
 
     # The strongest rival: the best score outside the 3x3 neighbourhood of the peak (or, when
     # the window has nothing outside it, the second-best score).
-    far = (np.abs(offsets[None, :, 0] - offsets[best][:, None, 0]) > 1) | (
-        np.abs(offsets[None, :, 1] - offsets[best][:, None, 1]) > 1
-    )
-    rival = np.where(far, scores, -np.inf).max(axis=1)
-    if scores.shape[1] > 1:
-        second = np.partition(scores, -2, axis=1)[:, -2]
-        rival = np.where(np.isfinite(rival), rival, second)
+    masked = scores.copy()
+    np.copyto(masked, -np.inf, where=near[best])
+    rival = masked.max(axis=1)
+    lone = ~np.isfinite(rival)
+    if n_d > 1 and lone.any():
+        rival[lone] = np.partition(scores[lone], -2, axis=1)[:, -2]
     height = peak - scores.mean(axis=1)
     with np.errstate(divide="ignore", invalid="ignore"):
         conf = np.where(height > 1e-12, (peak - rival) / height, 0.0)
     return disp, np.clip(conf, 0.0, 1.0).astype(np.float32)
+
+
+class PatchFeatures:
+    """One frame's side of a batch of raw patches, projected onto the model's filters once so
+    it can be paired with several other batches (e.g. the first frame's patches against every
+    pre-warp of the second).
+
+    Attributes
+    ----------
+    proj : (N, F) float32
+        ``prepared_patch @ filters`` before the pair's shared contrast scale (mean removed for
+        ``normalization="contrast"``).
+    energy : (N,) float32
+        Mean squared (mean-removed) value per patch (``"contrast"``), else zeros.
+    const : (N,) bool
+        The patch is constant (``"none"``: flat-pair test).
+    """
+
+    __slots__ = ("proj", "energy", "const")
+
+    def __init__(self, proj: np.ndarray, energy: np.ndarray, const: np.ndarray) -> None:
+        self.proj, self.energy, self.const = proj, energy, const
+
+    def take(self, index: np.ndarray) -> "PatchFeatures":
+        """The features of the patches ``index`` (e.g. ``np.tile``-like repetition)."""
+        return PatchFeatures(self.proj[index], self.energy[index], self.const[index])
+
+
+def patch_features(model: GatedRBM, raw: np.ndarray, *, side: str) -> PatchFeatures:
+    """Project raw patches onto the model's input (``side="x"``) or output (``"y"``) filters.
+
+    Parameters
+    ----------
+    model : GatedRBM
+    raw : (N, p*p) float32 raw patches in [0, 1]
+    side : {"x", "y"}
+
+    Returns
+    -------
+    PatchFeatures
+
+    Notes
+    -----
+    The contrast normalisation of :meth:`GatedRBM.prepare` is linear per patch: removing the
+    mean is projecting onto column-centred filters, and the pair's shared scale divides the
+    factor product by ``scale**2``. So the raw patches are projected once (one matmul) and
+    never copied into normalised form.
+    """
+    raw = np.ascontiguousarray(raw, dtype=np.float32)
+    n = raw.shape[0]
+    if model.normalization == "contrast":
+        proj = raw @ _centred_filters(model, side)
+        d = np.float32(raw.shape[1])
+        mean = raw.sum(axis=1) / d
+        energy = np.einsum("ij,ij->i", raw, raw) / d - mean * mean
+        np.maximum(energy, 0.0, out=energy)
+        const = np.zeros(n, bool)
+    else:
+        proj = raw @ (model.wxf if side == "x" else model.wyf)
+        energy = np.zeros(n, np.float32)
+        const = np.ptp(raw, axis=1) <= 1e-6 if n else np.zeros(0, bool)
+    return PatchFeatures(proj, energy.astype(np.float32, copy=False), const)
+
+
+def _centred_filters(model: GatedRBM, side: str) -> np.ndarray:
+    """``W - colsum(W) / n``: ``(x - mean(x)) @ W == x @ (W - colsum(W) / n)``, so the mean
+    removal of the contrast normalisation is folded into the filters. ``(n, F) float32``,
+    cached."""
+    key = ("centred", side)
+    if key not in model._cache:
+        w = (model.wxf if side == "x" else model.wyf).astype(np.float64)
+        model._cache[key] = np.ascontiguousarray((w - w.mean(axis=0)).astype(np.float32))
+    return model._cache[key]
+
+
+def precompute(model: GatedRBM, *, max_disp: int) -> None:
+    """Compute the per-model constants :func:`raw_patch_motion` needs (folded displacement
+    filters, centred filters) now rather than on the first frame. They are cached on the model
+    and reused until :meth:`GatedRBM.invalidate`."""
+    _hidden_displacement_filters(model, max_disp)
+    if model.normalization == "contrast":
+        _centred_filters(model, "x")
+        _centred_filters(model, "y")
+
+
+def raw_patch_motion(
+    model: GatedRBM,
+    x_raw: Optional[np.ndarray],
+    y_raw: np.ndarray,
+    *,
+    max_disp: int,
+    x_features: Optional[PatchFeatures] = None,
+    subpixel: bool = True,
+) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:meth:`GatedRBM.prepare` + :func:`patch_displacements` on raw patches, fused.
+
+    Same result as ``patch_displacements(model, *model.prepare(x_raw, y_raw)[:2])`` (to float32
+    rounding) with fewer passes over the data: the normalisation is folded into the projections
+    (:func:`patch_features`) and the displacement filters into the mapping-unit weights.
+
+    Parameters
+    ----------
+    model : GatedRBM
+    x_raw : (N, p*p) float32 raw patches in [0, 1], or None when ``x_features`` is given
+    y_raw : (N, p*p) float32
+    max_disp : int
+    x_features : PatchFeatures, optional
+        ``patch_features(model, x_raw, side="x")`` when already computed (reused across reads).
+
+    Returns
+    -------
+    disp : (N, 2) float32
+    confidence : (N,) float32, 0 for flat pairs
+    flat : (N,) bool
+    """
+    fx = x_features if x_features is not None else patch_features(model, x_raw, side="x")
+    fy = patch_features(model, y_raw, side="y")
+    f = fx.proj * fy.proj
+    a = f @ model.whf.T
+    if model.normalization == "contrast":
+        rms = np.sqrt(0.5 * (fx.energy + fy.energy))
+        flat = rms < model.contrast_floor
+        scale = np.maximum(rms, np.float32(model.contrast_floor))
+        # The pair's shared scale divides both projections: 1 / scale**2 on their product, applied
+        # after the (linear) matmul to the narrower (N, K) array.
+        a *= (1.0 / (scale * scale)).astype(np.float32)[:, None]
+    else:
+        flat = fx.const | fy.const
+    a += model.bh
+    # sigmoid(a) = (1 + tanh(a / 2)) / 2: fewer passes than 1 / (1 + exp(-a)), no overflow.
+    a *= np.float32(0.5)
+    h = np.tanh(a, out=a)
+    h *= np.float32(0.5)
+    h += np.float32(0.5)
+    scores = h @ _hidden_displacement_filters(model, max_disp)
+    disp, conf = _peaks(scores, int(max_disp), subpixel=subpixel)
+    conf[flat] = 0.0
+    return disp, conf, flat
 
 
 def max_flow_field(

@@ -120,3 +120,58 @@ def test_final_readout_at_a_coarser_level_is_in_full_resolution_pixels():
     inner = flow.valid & (flow.centres[:, 0] > 20) & (flow.centres[:, 0] < w - 20)
     assert flow.centres[:, 0].max() > w / 2 + 40  # centres span the full-size frame
     np.testing.assert_allclose(np.median(flow.disp[inner], axis=0), [6, -2], atol=0.6)
+
+
+def _random_contrast_model():
+    from bgsub.rbm import GatedRBM
+
+    model = GatedRBM.create(patch_size=13, n_factors=32, n_hidden=16, init_scale=0.05,
+                            rng=np.random.default_rng(2), normalization="contrast")
+    model.meta["max_disp"] = 3
+    return model
+
+
+def test_refining_grid_shares_the_final_grids_first_frame_patches(monkeypatch):
+    """With refine_stride a multiple of stride, the refining readout's first-frame patches are
+    taken from the final grid's (computed once); the result must be the same as cutting them
+    anew."""
+    import bgsub.flowfield as ff
+
+    h, w = 96, 128
+    base = _texture(h, w, seed=4)[:h, :w]
+    moved = _shift(base, 1, 1, h, w)
+    model = _random_contrast_model()
+    kwargs = dict(model=model, levels=2, stride=6, iterations=2, refine_stride=12,
+                  min_texture=0.0)
+    shared = estimate_flow(base, moved, **kwargs)
+    monkeypatch.setattr(ff, "_subgrid", lambda *a, **k: None)
+    fresh = estimate_flow(base, moved, **kwargs)
+    np.testing.assert_array_equal(shared.valid, fresh.valid)
+    np.testing.assert_allclose(shared.disp, fresh.disp, atol=1e-5)
+    np.testing.assert_allclose(shared.prewarp, fresh.prewarp, atol=1e-6)
+
+
+def test_coarser_refining_grid_still_recovers_a_large_pan():
+    h, w = 192, 256
+    base = _texture(h, w, seed=1)[:h, :w]
+    moved = _shift(base, 11, 4, h, w)
+    flow = estimate_flow(base, moved, model=OracleMatcher(), levels=3, iterations=2, stride=8,
+                         refine_stride=16, min_texture=0.0)
+    inner = (flow.centres[:, 0] > 20) & (flow.centres[:, 0] < w - 20)
+    np.testing.assert_allclose(np.median(flow.disp[inner & flow.valid], axis=0), [11, 4],
+                               atol=0.6)
+    assert flow.stride == 8  # the result is on the final grid
+
+
+def test_level_texture_map_equals_the_tiling_texture_at_patch_centres():
+    from bgsub.flowfield import _texture_map
+    from bgsub.tiling import patch_grid, texture_map
+
+    gray = _texture(60, 80, seed=5)[:60, :80].astype(np.float32) / 255
+    gray[:, :25] = 0.3
+    centres, _ = patch_grid(gray.shape, patch_size=13, stride=4)
+    ci = centres.astype(int)
+    expected = texture_map(gray, window=13)[ci[:, 1], ci[:, 0]]
+    got = _texture_map(gray, 13)[ci[:, 1], ci[:, 0]]
+    np.testing.assert_allclose(got, expected, rtol=1e-4, atol=1e-9)
+    assert expected.max() > 1e-4 and got.min() >= 0.0

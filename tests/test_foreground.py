@@ -95,3 +95,25 @@ def test_clean_mask_drops_small_blobs():
     m[20:40, 20:40] = 255
     out = clean_mask(m, min_area=30)
     assert out[30, 30] == 255 and out[6, 6] == 0
+
+
+def test_update_after_score_of_the_same_frame_equals_a_fresh_update():
+    """score() keeps the frame's difference for update(); the result must not depend on it."""
+    world = _scene(seed=3)
+    frames = [_view(world, x0) for x0 in (0, 2, 4, 6)]
+    shift = np.array([[1, 0, -2.0], [0, 1, 0], [0, 0, 1]])
+    models = [CompensatedBackground(BackgroundParams()) for _ in range(2)]
+    for bg in models:
+        bg.reset(frames[0])
+        bg.update(frames[0])
+    for frame in frames[1:]:
+        masks = []
+        for k, bg in enumerate(models):
+            bg.warp(shift)
+            masks.append(fuse_masks(bg.score(frame)))
+        np.testing.assert_array_equal(masks[0], masks[1])
+        models[0].update(frame, masks[0])  # the scored object: reuses the difference
+        models[1].update(frame.copy(), masks[1])  # another object: recomputes it
+        for name in ("mean", "var", "age"):
+            np.testing.assert_allclose(getattr(models[0], name), getattr(models[1], name),
+                                       rtol=1e-6, atol=1e-4)

@@ -66,3 +66,13 @@ def test_translation_model():
     gm = fit_global_motion(src, dst, model="translation")
     assert gm.ok
     np.testing.assert_allclose(gm.matrix[:2, 2], [-7.5, 2.25], atol=1e-6)
+
+
+def test_identity_and_affine_tests():
+    from bgsub.global_motion import is_affine, is_identity
+
+    eye = np.eye(3)
+    assert is_identity(eye) and is_identity(eye + 1e-9)
+    assert not is_identity(np.array([[1, 0, 0.01], [0, 1, 0], [0, 0, 1.0]]))
+    assert is_affine(np.array([[1.1, 0.1, 3], [0, 0.9, 2], [0, 0, 2.0]]))
+    assert not is_affine(_true_h())

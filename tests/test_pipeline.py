@@ -141,3 +141,36 @@ def test_engines_registered_with_documented_params():
     for name in ("grbm", "compensated"):
         spec = get_engine_spec(name)
         assert "work_width" in spec.params and spec.params["work_width"].help
+
+
+def test_thread_limit_is_scoped_to_the_frame():
+    from bgsub.pipeline import _openblas, limited_threads
+
+    saved = cv2.getNumThreads()
+    cv2.setNumThreads(2)
+    blas = _openblas()
+    before = blas[1]() if blas else None
+    try:
+        with limited_threads(1):
+            assert cv2.getNumThreads() == 1
+            if blas:
+                assert blas[1]() == 1
+        assert cv2.getNumThreads() == 2
+        if blas:
+            assert blas[1]() == before
+        with limited_threads(0):  # 0: leave as configured
+            assert cv2.getNumThreads() == 2
+    finally:
+        cv2.setNumThreads(saved)
+
+
+def test_grbm_step_restores_thread_settings():
+    saved = cv2.getNumThreads()
+    cv2.setNumThreads(2)
+    try:
+        eng = _grbm_with_oracle()
+        for frame, _ in _frames(n=3):
+            eng.apply(frame)
+        assert cv2.getNumThreads() == 2
+    finally:
+        cv2.setNumThreads(saved)

@@ -192,3 +192,70 @@ def test_cli_analogy_missing_image_and_bad_model(tmp_path, capsys):
     assert main(["analogy", "a.png", "b.png", "c.png", "-o", str(tmp_path / "o.png"),
                  "--model", "no-such-model"]) == 2
     assert "shipped" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------------- fused raw readout
+
+
+def _contrast_model(seed: int = 3) -> GatedRBM:
+    model = GatedRBM.create(patch_size=7, n_factors=24, n_hidden=12, init_scale=0.3,
+                            rng=np.random.default_rng(seed), normalization="contrast")
+    model.bh[:] = np.random.default_rng(seed + 1).normal(0, 0.5, model.bh.shape)
+    return model
+
+
+def _raw_pairs(n: int, p: int, seed: int):
+    rng = np.random.default_rng(seed)
+    x = rng.random((n, p * p)).astype(np.float32)
+    y = np.roll(x.reshape(n, p, p), 1, axis=2).reshape(n, p * p) + rng.normal(0, 0.05, (n, p * p))
+    y = y.astype(np.float32)
+    x[:3] = 0.4  # constant patches: flat pairs
+    y[:3] = 0.4
+    return x, y
+
+
+@pytest.mark.parametrize("normalization", ["contrast", "none"])
+def test_raw_patch_motion_equals_prepare_then_patch_displacements(normalization):
+    from bgsub.readout import raw_patch_motion
+
+    model = _contrast_model()
+    model.normalization = normalization
+    x_raw, y_raw = _raw_pairs(200, 7, seed=5)
+    x, y, flat = model.prepare(x_raw, y_raw)
+    disp, conf = patch_displacements(model, x, y, max_disp=2)
+    conf = np.where(flat, 0.0, conf)
+    d2, c2, f2 = raw_patch_motion(model, x_raw, y_raw, max_disp=2)
+    np.testing.assert_array_equal(f2, flat)
+    assert flat[:3].all()
+    np.testing.assert_allclose(d2, disp, atol=1e-3)
+    np.testing.assert_allclose(c2, conf, atol=1e-3)
+
+
+def test_projected_first_frame_patches_can_be_reused_across_reads():
+    from bgsub.readout import patch_features, raw_patch_motion
+
+    model = _contrast_model()
+    x_raw, y_raw = _raw_pairs(64, 7, seed=6)
+    feats = patch_features(model, x_raw, side="x")
+    for y in (y_raw, y_raw[::-1].copy()):
+        direct = raw_patch_motion(model, x_raw, y, max_disp=3)
+        reused = raw_patch_motion(model, None, y, max_disp=3, x_features=feats)
+        for a, b in zip(direct, reused):
+            np.testing.assert_array_equal(a, b)
+
+
+def test_peak_confidence_ignores_the_peaks_neighbours_and_subpixel_stays_in_half_pixel():
+    from bgsub.readout import _peaks
+
+    rng = np.random.default_rng(7)
+    r, side = 3, 7
+    scores = rng.random((300, side * side)).astype(np.float32)
+    disp, conf = _peaks(scores, r)
+    offsets = displacement_offsets(r)
+    best = scores.argmax(axis=1)
+    assert np.all(np.abs(disp - offsets[best]) <= 0.5)
+    for n in range(0, 300, 37):  # brute-force rival outside the 3x3 neighbourhood
+        far = np.max(np.abs(offsets - offsets[best[n]]), axis=1) > 1
+        rival = scores[n, far].max()
+        expected = (scores[n, best[n]] - rival) / (scores[n, best[n]] - scores[n].mean())
+        assert conf[n] == pytest.approx(np.clip(expected, 0, 1), abs=1e-5)

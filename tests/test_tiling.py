@@ -49,3 +49,17 @@ def test_texture_low_for_flat_and_single_edge_high_for_checkerboard():
     assert flat < 0.01
     assert edge < 0.05
     assert checker > 0.5
+
+
+def test_texture_at_centres_equals_the_full_texture_map_there():
+    from bgsub.tiling import texture_at, texture_map
+
+    rng = np.random.default_rng(4)
+    gray = rng.random((50, 70)).astype(np.float32)
+    gray[:, :30] = 0.5  # flat region: zero texture
+    centres, _ = patch_grid(gray.shape, patch_size=13, stride=5)
+    tmap = texture_map(gray, window=13)
+    expected = tmap[centres[:, 1].astype(int), centres[:, 0].astype(int)]
+    got = texture_at(gray, centres, window=13)
+    np.testing.assert_allclose(got, expected, rtol=1e-5, atol=1e-9)
+    assert got.min() == 0.0 and got.max() > 0.0

@@ -80,6 +80,7 @@ import re
 import sys
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
+from abc import ABC, abstractmethod
 from typing import (
     Any, Dict, Iterable, Iterator, List, Mapping, Optional, Sequence, Tuple, Union,
 )
@@ -451,13 +452,14 @@ def _as_uint8_mask(mask: Any, number: int) -> np.ndarray:
     return mask
 
 
-class _PredictionReader:
+class _PredictionReader(ABC):
     """Yields ``(number, mask)`` for the wanted frame numbers it has; knows how to name them."""
 
     label: str
 
+    @abstractmethod
     def read(self, numbers: Sequence[int]) -> Iterator[Tuple[int, np.ndarray]]:
-        raise NotImplementedError
+        """``(number, mask)`` for each wanted frame number this prediction has."""
 
     def frame_name(self, number: int) -> str:
         return f"frame {number}"

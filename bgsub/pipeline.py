@@ -20,6 +20,7 @@ return an empty mask (or, for a scene cut, restart the model) and say why in ``l
 from __future__ import annotations
 
 from dataclasses import dataclass
+from abc import abstractmethod
 from typing import Any, Optional
 
 import cv2
@@ -265,9 +266,10 @@ class MovingCameraEngine(Engine):
 
     # ------------------------------------------------------------------ the front end
 
+    @abstractmethod
     def _motion(self, prev_gray: np.ndarray, gray: np.ndarray,
                 prior: Optional[np.ndarray]) -> MotionResult:
-        raise NotImplementedError
+        """The camera motion from ``prev_gray`` to ``gray`` (the front end each engine brings)."""
 
     def _fit(self, points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
              shape: tuple) -> GlobalMotion:

@@ -28,6 +28,7 @@ import time
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
+from abc import ABC, abstractmethod
 from typing import Callable, Iterable, Optional, Tuple, Union
 
 import numpy as np
@@ -209,17 +210,19 @@ def _check_image(image: np.ndarray, *, ndims: Tuple[int, ...], what: str) -> Non
 _SHAPES = {2: "(H, W)", 3: "(H, W, 3)"}
 
 
-class _Sink:
+class _Sink(ABC):
     """Context-manager behaviour shared by every sink: close, and report a partial output."""
 
     path: Path
 
     @property
-    def frames_written(self) -> int:  # pragma: no cover (overridden)
-        raise NotImplementedError
+    @abstractmethod
+    def frames_written(self) -> int:
+        """Frames written so far."""
 
-    def close(self) -> None:  # pragma: no cover (overridden)
-        raise NotImplementedError
+    @abstractmethod
+    def close(self) -> None:
+        """Finish the output (also after an interruption: the partial output stays valid)."""
 
     def _partial_message(self, reason: str) -> str:
         n = self.frames_written
@@ -280,8 +283,9 @@ class MaskSink(_Sink):
                              f"{mask.shape[1]}x{mask.shape[0]}")
         self._write(mask, index)
 
-    def _write(self, mask: np.ndarray, index: Optional[int]) -> None:  # pragma: no cover
-        raise NotImplementedError
+    @abstractmethod
+    def _write(self, mask: np.ndarray, index: Optional[int]) -> None:
+        """Write one validated mask."""
 
 
 class MaskVideoSink(MaskSink):

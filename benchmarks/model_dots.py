@@ -1,6 +1,6 @@
 """Benchmark the gated RBM on random dots: training time, accuracy, inference speed.
 
-Usage (from the repository root; results go to docs/bench-model.md by hand)::
+Usage (from the repository root; results go to docs/BENCHMARKS.md by hand)::
 
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/model_dots.py train
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/model_dots.py eval

@@ -47,7 +47,7 @@ __all__ = ["MovingCameraEngine", "GrbmEngine", "CompensatedEngine", "MotionResul
 # whole-frame OpenCV calls on 320x240 images. Handing those to worker threads costs more than it
 # saves: on the shared 2-core development machine a multi-threaded OpenBLAS ran grbm at 4 frames/s
 # instead of 15-30 (its threads spin-wait for a busy core), and OpenCV's 2 threads cost ~10 % of
-# the CPU time of 1 (docs/bench-pipeline.md). So the engines run each frame with ``threads``
+# the CPU time of 1 (docs/BENCHMARKS.md, issue 4). So the engines run each frame with ``threads``
 # (default 1) BLAS and OpenCV threads and restore the previous settings afterwards. The settings
 # are process-wide: engines stepped concurrently from several Python threads should all use the
 # same ``threads`` value.
@@ -615,7 +615,7 @@ def _with_defaults(common: dict, **overrides: Any) -> dict:
 # The gated RBM's readings are less precise than tracked corners (0.1-0.5 px vs < 0.1 px on
 # generated scenes) and its flow-violation evidence is dense but noisier: its engine fits the
 # 4-parameter similarity (more stable than a homography on noisy vectors) and leans on
-# violation evidence to boost rather than to damp. Tuned on the real set (docs/bench-pipeline.md).
+# violation evidence to boost rather than to damp. Tuned on the real set (docs/BENCHMARKS.md, issue 4).
 _GRBM_COMMON = _with_defaults(_COMMON, motion_model="similarity", flow_boost=1.5, flow_damp=0.2)
 
 

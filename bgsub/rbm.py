@@ -341,7 +341,10 @@ class GatedRBM:
             with np.load(path, allow_pickle=False) as npz:
                 data = {name: npz[name] for name in npz.files}
         except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as err:
-            raise ModelError(f"{path} is not a readable bgsub model (corrupt or truncated: {err})") from None
+            # numpy's own message for a non-npz file suggests loading it with allow_pickle, which
+            # bgsub never does (a pickle can run code): name the problem without that advice.
+            reason = "not an .npz archive" if "pickle" in str(err) else f"corrupt or truncated: {err}"
+            raise ModelError(f"{path} is not a readable bgsub model ({reason})") from None
         missing = [n for n in ("format_version", "header") + _ARRAYS if n not in data]
         if missing:
             raise ModelError(f"{path} is not a bgsub model (missing {', '.join(missing)})")

@@ -22,12 +22,12 @@ import numpy as np
 
 from bgsub.errors import InputError
 
-# Modules whose import registers the built-in engines. A module that is missing is skipped, so
-# the registry works while the package is being built up.
+# Modules whose import registers the built-in engines (imported on first use of the registry,
+# so `import bgsub` stays light).
 _BUILTIN_MODULES = ("bgsub.baselines", "bgsub.pipeline")
 
-#: The engine ``bgsub run`` uses when ``--method`` is not given (the first of these registered).
-DEFAULT_METHODS = ("grbm", "mog2")
+#: The engine ``bgsub run`` (and :func:`create_engine`) uses when no method is named.
+DEFAULT_METHOD = "grbm"
 
 
 class Engine(ABC):
@@ -146,11 +146,7 @@ def _load_builtins() -> None:
         return
     _loaded = True
     for module in _BUILTIN_MODULES:
-        try:
-            importlib.import_module(module)
-        except ModuleNotFoundError as err:
-            if err.name != module:  # a real missing dependency inside the module
-                raise
+        importlib.import_module(module)
 
 
 def available_engines() -> List[EngineSpec]:
@@ -161,8 +157,7 @@ def available_engines() -> List[EngineSpec]:
 
 def default_method() -> str:
     """Name of the engine used when none is asked for."""
-    _load_builtins()
-    return next(name for name in DEFAULT_METHODS if name in _REGISTRY)
+    return DEFAULT_METHOD
 
 
 def get_engine_spec(name: str) -> EngineSpec:

@@ -59,8 +59,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="mask video (.mkv/.avi lossless, .mp4 lossy) or a folder for "
                              "binNNNNNN.png masks")
     parser.add_argument("-m", "--method", default=None, metavar="NAME",
-                        help="engine to use (default: the first available of "
-                             f"{', '.join(engines.DEFAULT_METHODS)}; see `bgsub methods`)")
+                        help=f"engine to use (default: {engines.DEFAULT_METHOD}; see "
+                             "`bgsub methods`)")
     parser.add_argument("-p", "--param", action="append", default=[], metavar="KEY=VALUE",
                         help="set an engine parameter, e.g. --param history=200 (repeatable)")
     parser.add_argument("--vis", metavar="VIDEO", default=None,
@@ -75,13 +75,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _method(name: Optional[str]) -> str:
-    if name:
-        return name
-    try:
-        return engines.default_method()
-    except StopIteration:  # no built-in engine is importable
-        raise InputError("no background-subtraction engine is available; give --method "
-                         "(see `bgsub methods`)") from None
+    return name or engines.default_method()
 
 
 def _check_outputs(args: argparse.Namespace) -> None:

@@ -88,8 +88,17 @@ def _dots(rng: np.random.Generator, shape: Tuple[int, ...], density: float) -> n
     return (rng.random(shape, dtype=np.float32) < density).astype(np.float32)
 
 
+class _LabelledPairs:
+    """A pair source that also knows the true motion of each pair (``sample`` returns it); as
+    the trainer's source (``source(rng, n, epoch) -> (X, Y)``) it drops the labels."""
+
+    def __call__(self, rng: np.random.Generator, n: int, epoch: int = 0) -> Tuple[np.ndarray, np.ndarray]:
+        x, y, _ = self.sample(rng, n, epoch)
+        return x, y
+
+
 @dataclass
-class TranslatedDots:
+class TranslatedDots(_LabelledPairs):
     """Random dots (``density`` of pixels on) and the same dots shifted by an integer ``(dx, dy)``.
 
     Each pair is cut from one larger random image as two windows ``(dx, dy)`` apart, so content
@@ -102,10 +111,6 @@ class TranslatedDots:
     max_shift: int = 1
     density: float = 0.1
     curriculum: Curriculum = field(default_factory=Curriculum)
-
-    def __call__(self, rng: np.random.Generator, n: int, epoch: int = 0) -> Tuple[np.ndarray, np.ndarray]:
-        x, y, _ = self.sample(rng, n, epoch)
-        return x, y
 
     def sample(
         self, rng: np.random.Generator, n: int, epoch: Optional[int] = None
@@ -132,7 +137,7 @@ class TranslatedDots:
 
 
 @dataclass
-class RotatedDots:
+class RotatedDots(_LabelledPairs):
     """Random dots and the same dots rotated about the patch centre by an angle in degrees.
 
     The angle is uniform in ``[-max_angle, max_angle]`` (narrowed by the curriculum early on).
@@ -146,10 +151,6 @@ class RotatedDots:
     max_angle: float = 30.0
     density: float = 0.1
     curriculum: Curriculum = field(default_factory=Curriculum)
-
-    def __call__(self, rng: np.random.Generator, n: int, epoch: int = 0) -> Tuple[np.ndarray, np.ndarray]:
-        x, y, _ = self.sample(rng, n, epoch)
-        return x, y
 
     def sample(
         self, rng: np.random.Generator, n: int, epoch: Optional[int] = None

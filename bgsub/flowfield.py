@@ -231,7 +231,8 @@ def estimate_flow(
         (costs one more batched inference per extra iteration). Coarser levels read once.
 
     coarse_iterations : int
-        Readouts at each coarser level (like ``iterations``).
+        Readouts at the coarsest level, each after re-warping by the fit of the one before
+        (like ``iterations``); the levels between it and ``finest`` read once.
     finest : int
         Pyramid level of the final readout (0 = full resolution). On blurry footage the model
         reads motion better on a reduced image; results are still in full-resolution pixels
@@ -286,15 +287,20 @@ def estimate_flow(
                     cands.append(np.array([[1.0, 0, i * step], [0, 1.0, j * step], [0, 0, 1]]))
         h_est = _best_start(pyr1[lvl], pyr2[lvl], cands, factor, model, p, cstride, rng,
                             min_texture, max_patches, coarse_model, ransac_threshold, h_est)
-        levels_plan = range(levels - 2, 0, -1)
+        started = True  # the start's readout was the coarsest level's first
     else:
-        levels_plan = range(levels - 1, 0, -1)
+        started = False
     iterations = max(1, int(iterations))
+    coarse_iterations = max(1, int(coarse_iterations))
     fine = min(max(0, int(finest)), levels - 1)
     # Every coarse level, and all but the last readout of the finest one, only serve to improve
     # the pre-warp; the last readout is the result.
-    plan = [(lvl, cstride) for lvl in levels_plan if lvl > fine
-            for _ in range(max(1, int(coarse_iterations)))]
+    # The coarsest level starts from a guess and reads coarse_iterations times: a blurred or
+    # large motion is under-read at first (e.g. 2.1 px for 4.3 px), and re-reading after each
+    # re-warp converges where the model is most reliable. Finer levels then start close and
+    # read once.
+    plan = [(lvl, cstride) for lvl in range(levels - 1, 0, -1) if lvl > fine
+            for _ in range(coarse_iterations - started if lvl == levels - 1 else 1)]
     fine_stride = stride if fine == 0 else max(4, int(round(stride / 2**fine)))
     pre_stride = fine_stride
     if refine_stride is not None:
@@ -417,7 +423,10 @@ def _best_start(g1, g2, cands, factor, model, p, stride, rng, min_texture, max_p
         conf = np.zeros(n, np.float32)
         valid = np.zeros(n, bool)
         sl = slice(i * k, (i + 1) * k)
-        residual[pick], conf[pick], valid[pick] = d[sl], c[sl], ~flat[sl]
+        # Readings at the edge of the range are a larger motion clipped: a wrong start reads
+        # them everywhere, consistently, so they must not count as support for it.
+        inside = np.max(np.abs(d[sl]), axis=1) < rng - 0.25
+        residual[pick], conf[pick], valid[pick] = d[sl], c[sl], ~flat[sl] & inside
         dst = apply_homography(h, centres + residual).astype(np.float32)
         est = dict(centres=centres, disp=dst - centres, conf=conf, texture=tex, valid=valid)
         fitted = _fit_level(est, coarse_model, threshold, g1.shape)

@@ -475,8 +475,8 @@ class GrbmEngine(MovingCameraEngine):
     def __init__(self, *, model: Any = "natural", stride: int = 8, levels: int = 0,
                  max_motion: float = 32.0, min_texture: float = 0.02, max_patches: int = 0,
                  iterations: int = 2, retry_below: float = 0.6, prior_levels: int = 0,
-                 search: int = 0, coarse_iterations: int = 1, finest: int = 0,
-                 refine_stride: int = 0, **kwargs: Any) -> None:
+                 search: int = 0, coarse_iterations: int = 3, finest: int = 0,
+                 refine_stride: int = 16, coarser_below: float = 0.5, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         from bgsub.rbm import load_model
 
@@ -495,6 +495,7 @@ class GrbmEngine(MovingCameraEngine):
         self.coarse_iterations = max(1, int(coarse_iterations))
         self.finest = max(0, int(finest))
         self.refine_stride = int(refine_stride) if refine_stride > 0 else None
+        self.coarser_below = float(coarser_below)
         if not hasattr(self.model, "patch_motion"):
             # Per-model constants of the readout, once here rather than in the first frame.
             from bgsub.flowfield import model_range
@@ -502,7 +503,17 @@ class GrbmEngine(MovingCameraEngine):
 
             precompute(self.model, max_disp=model_range(self.model))
 
-    def _flow(self, prev_gray: np.ndarray, gray: np.ndarray, prior: Optional[np.ndarray]):
+    def _read(self, prev_gray: np.ndarray, gray: np.ndarray, prior: Optional[np.ndarray],
+              finest: int) -> tuple:
+        """``(flow, motion, support)``: the readout with its final level ``finest``, the camera
+        motion fitted to it and the fraction of its usable patches that agree with it."""
+        flow = self._flow(prev_gray, gray, prior, finest)
+        motion = self._fit(flow.centres, flow.disp, flow.weights, gray.shape)
+        used = max(int(np.count_nonzero(flow.weights > 0)), 1)
+        return flow, motion, (motion.n_inliers / used if motion.ok else 0.0)
+
+    def _flow(self, prev_gray: np.ndarray, gray: np.ndarray, prior: Optional[np.ndarray],
+              finest: Optional[int] = None):
         levels = self.levels
         if prior is not None and levels is None:
             # The previous frame's motion predicts this one to within a few pixels: two levels
@@ -513,7 +524,8 @@ class GrbmEngine(MovingCameraEngine):
                              levels=levels, max_motion=self.max_motion, prior=prior,
                              min_texture=self.min_texture, max_patches=self.max_patches,
                              iterations=self.iterations, search=self.search,
-                             coarse_iterations=self.coarse_iterations, finest=self.finest,
+                             coarse_iterations=self.coarse_iterations,
+                             finest=self.finest if finest is None else finest,
                              refine_stride=self.refine_stride)
 
     def _flow_colour(self, shape: tuple) -> Optional[np.ndarray]:
@@ -540,12 +552,21 @@ class GrbmEngine(MovingCameraEngine):
 
     def _motion(self, prev_gray: np.ndarray, gray: np.ndarray,
                 prior: Optional[np.ndarray]) -> MotionResult:
-        flow = self._flow(prev_gray, gray, prior)
-        self._last_flow = flow
+        flow, motion, support = self._read(prev_gray, gray, prior, self.finest)
+        finest = self.finest
+        # Low support at the final level means the model cannot read it (motion blur, heavy
+        # compression: on CDnet traffic's shaking frames) while a reduced image, where the blur
+        # is halved, reads consistently: try one or two levels coarser and keep the reading
+        # the most patches agree with.
+        while (support < self.coarser_below and finest < self.finest + 2
+               and finest + 1 < flow.levels):
+            finest += 1
+            coarser = self._read(prev_gray, gray, prior, finest)
+            if coarser[1].ok and (coarser[2] > support or not motion.ok):
+                flow, motion, support = coarser
         weights = flow.weights
-        motion = self._fit(flow.centres, flow.disp, weights, gray.shape)
+        self._last_flow = flow
         first = MotionResult(flow.centres, flow.disp, weights, motion, self._vweights(flow))
-        support = motion.n_inliers / max(int(np.count_nonzero(weights > 0)), 1)
         reduced = self.levels is None and self.prior_levels > 0
         if prior is None or not reduced or (motion.ok and support >= self.retry_below):
             return first
@@ -612,11 +633,13 @@ def _with_defaults(common: dict, **overrides: Any) -> dict:
     return out
 
 
-# The gated RBM's readings are less precise than tracked corners (0.1-0.5 px vs < 0.1 px on
-# generated scenes) and its flow-violation evidence is dense but noisier: its engine fits the
-# 4-parameter similarity (more stable than a homography on noisy vectors) and leans on
-# violation evidence to boost rather than to damp. Tuned on the real set (docs/BENCHMARKS.md, issue 4).
-_GRBM_COMMON = _with_defaults(_COMMON, motion_model="similarity", flow_boost=1.5, flow_damp=0.2)
+# The gated RBM's flow-violation evidence is dense but noisier than tracked corners: weakly
+# textured object patches read the camera's motion and would damp true objects, so its engine
+# leans on violation evidence to boost rather than to damp. With the coarsest level read to
+# convergence its vectors support a homography (DAVIS perspective scenes: 0.58 vs 0.53 with a
+# similarity) at a tighter 1 px RANSAC threshold. Tuned on the real set (docs/BENCHMARKS.md,
+# issue 4).
+_GRBM_COMMON = _with_defaults(_COMMON, ransac_threshold=1.0, flow_boost=1.5, flow_damp=0.2)
 
 
 @register_engine(
@@ -633,10 +656,16 @@ _GRBM_COMMON = _with_defaults(_COMMON, motion_model="similarity", flow_boost=1.5
         "iterations": Param(2, "readouts at the finest level, each re-warped by the last fit"),
         "finest": Param(0, "pyramid level of the final readout (1 = half the working size: "
                            "faster, and better on blurry footage)"),
-        "refine_stride": Param(0, "patch grid step of the finest-level readouts that only "
-                                  "refine the pre-warp (iterations > 1; 0 = stride; 2 x stride "
-                                  "is ~15 % faster, slightly less accurate)"),
-        "coarse_iterations": Param(1, "readouts at each coarser pyramid level"),
+        "refine_stride": Param(16, "patch grid step of the finest-level readouts that only "
+                                   "refine the pre-warp (iterations > 1; 0 = stride): 2 x stride "
+                                   "reads a quarter of the patches, ~15 % faster for the same "
+                                   "accuracy"),
+        "coarse_iterations": Param(3, "readouts at the coarsest pyramid level, each re-warped "
+                                      "by the last fit (finer levels start close and read once)"),
+        "coarser_below": Param(0.5, "when fewer than this fraction of the final readout's "
+                                    "patches agree with the fitted motion (motion blur), also "
+                                    "read up to two levels coarser and keep the best-supported "
+                                    "(0 = never)"),
         "search": Param(0, "also start the coarsest level from a (2 search + 1)^2 grid of "
                            "shifts (shaking cameras); 0 = prior and identity only"),
         "prior_levels": Param(0, "pyramid levels used when the previous frame's motion "

@@ -194,8 +194,9 @@ def patch_displacements(
 def _peak_tables(r: int) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per-displacement lookup tables for :func:`_peaks` (cached per ``r``): the offsets
     ``(D, 2) float32``, the indices of the left/right/up/down neighbours ``(D, 4) intp`` (both
-    the index itself along an axis where ``d`` is on the window's edge), and ``near[d, e]``
-    (``e`` within the 3x3 neighbourhood of ``d``) ``(D, D) bool``."""
+    the index itself along an axis where ``d`` is on the window's edge), and the indices of the
+    3x3 neighbourhood of ``d`` ``(D, 9) intp`` (neighbours outside the window replaced by ``d``
+    itself)."""
     if r not in _PEAK_TABLES:
         offsets = displacement_offsets(r)
         side = 2 * r + 1
@@ -207,9 +208,13 @@ def _peak_tables(r: int) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
         iny = (row > 0) & (row < side - 1)
         nb = np.stack([np.where(inx, idx - 1, idx), np.where(inx, idx + 1, idx),
                        np.where(iny, idx - side, idx), np.where(iny, idx + side, idx)], axis=1)
-        near = (np.abs(offsets[:, None, 0] - offsets[None, :, 0]) <= 1) & (
-            np.abs(offsets[:, None, 1] - offsets[None, :, 1]) <= 1)
-        _PEAK_TABLES[r] = (offsets.astype(np.float32), nb.astype(np.intp), near)
+        block = []
+        for dy in (-1, 0, 1):
+            for dx in (-1, 0, 1):
+                ok = (row + dy >= 0) & (row + dy < side) & (col + dx >= 0) & (col + dx < side)
+                block.append(np.where(ok, idx + dy * side + dx, idx))
+        _PEAK_TABLES[r] = (offsets.astype(np.float32), nb.astype(np.intp),
+                           np.stack(block, axis=1).astype(np.intp))
     return _PEAK_TABLES[r]
 
 
@@ -220,7 +225,7 @@ def _peaks(scores: np.ndarray, r: int, *, subpixel: bool = True) -> Tuple[np.nda
     """Displacement and confidence from ``(N, D)`` displacement scores (see
     :func:`patch_displacements`). Table lookups keep this to a few passes over the scores."""
     n, n_d = scores.shape
-    offsets, nb, near = _peak_tables(int(r))
+    offsets, nb, block = _peak_tables(int(r))
     best = np.argmax(scores, axis=1)
     base = np.arange(n) * n_d
     flat_scores = scores.reshape(-1)
@@ -241,7 +246,7 @@ def _peaks(scores: np.ndarray, r: int, *, subpixel: bool = True) -> Tuple[np.nda
     # The strongest rival: the best score outside the 3x3 neighbourhood of the peak (or, when
     # the window has nothing outside it, the second-best score).
     masked = scores.copy()
-    np.copyto(masked, -np.inf, where=near[best])
+    masked.reshape(-1)[base[:, None] + block[best]] = -np.inf  # 9 writes per row, not 81
     rival = masked.max(axis=1)
     lone = ~np.isfinite(rival)
     if n_d > 1 and lone.any():

@@ -175,3 +175,56 @@ def test_level_texture_map_equals_the_tiling_texture_at_patch_centres():
     got = _texture_map(gray, 13)[ci[:, 1], ci[:, 0]]
     np.testing.assert_allclose(got, expected, rtol=1e-4, atol=1e-9)
     assert expected.max() > 1e-4 and got.min() >= 0.0
+
+
+class UnderReadingMatcher(OracleMatcher):
+    """The oracle's integer shift halved, rounded away from zero (3 -> 2, 2 -> 1, 1 -> 1): like
+    the gated RBM on blurred frames, it reads a motion as a smaller one in the right
+    direction."""
+
+    def patch_motion(self, x_raw, y_raw, *, max_disp):
+        disp, conf, flat = super().patch_motion(x_raw, y_raw, max_disp=max_disp)
+        return (np.sign(disp) * np.ceil(np.abs(disp) / 2)).astype(np.float32), conf, flat
+
+
+@pytest.mark.parametrize("with_prior", [False, True])
+def test_coarsest_level_is_read_until_it_converges(with_prior):
+    """An under-reading model leaves the pre-warp short after one readout of the coarsest
+    level; re-reading it after each re-warp converges (with a prior too: the start's readout
+    counts as the first)."""
+    h, w = 192, 256
+    base = _texture(h, w, seed=6)[:h, :w]
+    moved = _shift(base, 6, 0, h, w)  # 3 px at the coarser of 2 levels
+    prior = np.eye(3) if with_prior else None
+
+    def prewarp_x(coarse_iterations):
+        flow = estimate_flow(base, moved, model=UnderReadingMatcher(), levels=2, stride=8,
+                             iterations=1, coarse_iterations=coarse_iterations, prior=prior,
+                             min_texture=0.0)
+        return flow.prewarp[0, 2]
+
+    assert abs(prewarp_x(1) - 6) > 1.5  # 3 read as 2: 4 px
+    assert abs(prewarp_x(3) - 6) < 0.5
+
+
+class ClippingMatcher(OracleMatcher):
+    """Reads shifts a little beyond its range as the edge of the range (like the gated RBM)."""
+
+    def patch_motion(self, x_raw, y_raw, *, max_disp):
+        disp, conf, flat = super().patch_motion(x_raw, y_raw, max_disp=max_disp + 3)
+        return np.clip(disp, -max_disp, max_disp), conf, flat
+
+
+def test_start_candidates_get_no_support_from_clipped_readings():
+    """A wrong start (beyond the model's range from the true motion) reads the edge of the
+    range everywhere, a consistent but meaningless group; it must not win over the right one."""
+    from bgsub.flowfield import _best_start
+
+    h, w = 96, 128
+    base = _texture(h, w, seed=7)[:h, :w]
+    moved = _shift(base, 2, 0, h, w)
+    g1, g2 = base.astype(np.float32) / 255, moved.astype(np.float32) / 255
+    wrong = np.array([[1.0, 0, -3.0], [0, 1.0, 0], [0, 0, 1]])  # residual 5: read as 3
+    chosen = _best_start(g1, g2, [wrong, np.eye(3)], 1.0, ClippingMatcher(), 13, 8, 3, 0.0,
+                         None, "affine", 1.0, np.eye(3))
+    assert abs(chosen[0, 2] - 2) < 0.5, chosen

@@ -174,3 +174,40 @@ def test_grbm_step_restores_thread_settings():
         assert cv2.getNumThreads() == 2
     finally:
         cv2.setNumThreads(saved)
+
+
+def _fake_reading(finest, support):
+    from types import SimpleNamespace
+
+    from bgsub.global_motion import GlobalMotion
+
+    n = 10
+    flow = SimpleNamespace(levels=3, finest=finest, centres=np.zeros((n, 2), np.float32),
+                           disp=np.zeros((n, 2), np.float32), weights=np.ones(n, np.float32),
+                           texture=np.ones(n, np.float32), beyond=None)
+    return flow, GlobalMotion(np.eye(3), np.ones(n, bool), True, "ok"), support
+
+
+@pytest.mark.parametrize("coarser_below, expected, read", [
+    (0.5, 1, [0, 1]),        # level 1 is supported well enough: stop there
+    (0.95, 1, [0, 1, 2]),    # none reaches 0.95: two levels coarser at most, keep the best
+    (0.2, 0, [0]),           # the final level is supported: read once
+    (0.0, 0, [0]),           # off
+])
+def test_poorly_supported_readout_is_replaced_by_a_coarser_one(monkeypatch, coarser_below,
+                                                                expected, read):
+    """Below ``coarser_below`` support the engine also reads up to two levels coarser and
+    keeps the best-supported reading."""
+    eng = create_engine("grbm", model=OracleMatcher(), coarser_below=coarser_below)
+    support = {0: 0.3, 1: 0.9, 2: 0.6}
+    calls = []
+
+    def fake_read(prev, gray, prior, finest):
+        calls.append(finest)
+        return _fake_reading(finest, support[finest])
+
+    monkeypatch.setattr(eng, "_read", fake_read)
+    gray = np.zeros((60, 80), np.uint8)
+    eng._motion(gray, gray, None)
+    assert eng._last_flow.finest == expected
+    assert calls == read

@@ -263,6 +263,7 @@ def flow_violation_map(
     threshold: float = 1.5,
     cell: int = 8,
     radius: int = 1,
+    noise_scale: float = 0.0,
 ) -> np.ndarray:
     """Where local motion disagrees with the camera's.
 
@@ -284,6 +285,10 @@ def flow_violation_map(
         Votes are pooled in ``cell`` x ``cell`` cells ...
     radius : int
         ... and each cell also sees its neighbours within this many cells.
+    noise_scale : float
+        When > 0, the threshold is at least this many robust standard deviations of the
+        disagreement (``1.4826 * median``, dominated by the background's vectors): noisy
+        vectors (blurred footage) need a larger disagreement to count as motion.
 
     Returns
     -------
@@ -297,13 +302,15 @@ def flow_violation_map(
     d = np.asarray(disp, np.float64)
     predicted = apply_homography(matrix, pts) - pts
     err = np.hypot(*(d - predicted).T)
-    viol = 1.0 / (1.0 + np.exp(-(err - threshold) / 0.25))
     wt = np.asarray(weights, np.float64)
+    ok = (wt > 0) & np.isfinite(err)
+    if noise_scale > 0 and ok.any():
+        threshold = max(threshold, noise_scale * 1.4826 * float(np.median(err[ok])))
     cur = pts + d
     gw, gh = (w + cell - 1) // cell, (h + cell - 1) // cell
     gx = np.clip((cur[:, 0] // cell).astype(np.intp), 0, gw - 1)
     gy = np.clip((cur[:, 1] // cell).astype(np.intp), 0, gh - 1)
-    ok = (wt > 0) & np.isfinite(err)
+    viol = 1.0 / (1.0 + np.exp(-(err - threshold) / 0.25))
     cells = gy[ok] * gw + gx[ok]
     num = np.bincount(cells, (wt * viol)[ok], minlength=gh * gw).reshape(gh, gw).astype(np.float32)
     den = np.bincount(cells, wt[ok], minlength=gh * gw).reshape(gh, gw).astype(np.float32)

@@ -339,6 +339,8 @@ def shifted_image_pairs(
     min_contrast: float = 0.02,
     curriculum: Optional[Curriculum] = None,
     patch_size: int = 13,
+    blur: Sequence[float] = (),
+    motion_blur: int = 0,
 ) -> ShiftedImagePairs:
     """Pair source of shifted (and slightly rotated / zoomed) photographs.
 
@@ -352,6 +354,12 @@ def shifted_image_pairs(
         Resize factor applied to the photos (see :func:`load_photos`).
     max_shift, integer_shifts, max_rotation, max_zoom, noise, min_contrast, curriculum, patch_size
         See :class:`ShiftedImagePairs`.
+    blur : sequence of float
+        Also use every photo blurred by a Gaussian of each of these sigmas (px), like soft or
+        compressed video frames (both patches of a pair come from the same blurred photo).
+    motion_blur : int
+        Also use every photo box-blurred over this many pixels horizontally and, separately,
+        vertically, like the frames of a panning or shaking camera (0 = no).
 
     Returns
     -------
@@ -362,7 +370,8 @@ def shifted_image_pairs(
             raise InputError(f"split must be 'train' or 'test', not {split!r}")
         names = TRAIN_IMAGES if split == "train" else TEST_IMAGES
     return ShiftedImagePairs(
-        images=load_photos(names, scale=scale),
+        images=degraded_copies(load_photos(names, scale=scale), blur=blur,
+                               motion_blur=motion_blur),
         max_shift=max_shift,
         integer_shifts=integer_shifts,
         max_rotation=max_rotation,
@@ -372,6 +381,35 @@ def shifted_image_pairs(
         curriculum=curriculum if curriculum is not None else Curriculum(),
         patch_size=patch_size,
     )
+
+
+def degraded_copies(photos: Sequence[np.ndarray], *, blur: Sequence[float] = (),
+                    motion_blur: int = 0) -> List[np.ndarray]:
+    """``photos`` followed by their blurred copies (see :func:`shifted_image_pairs`).
+
+    Parameters
+    ----------
+    photos : sequence of (H, W) float32
+    blur : sequence of float
+        Gaussian sigmas (px); each adds one copy of every photo.
+    motion_blur : int
+        Box length (px); when > 1 adds a horizontally and a vertically blurred copy of every
+        photo.
+
+    Returns
+    -------
+    list of (H, W) float32
+    """
+    out = list(photos)
+    for sigma in blur:
+        if sigma <= 0:
+            raise InputError(f"blur sigmas must be positive, not {sigma}")
+        out += [cv2.GaussianBlur(im, (0, 0), float(sigma)) for im in photos]
+    if motion_blur > 1:
+        n = int(motion_blur)
+        out += [cv2.blur(im, (n, 1)) for im in photos]
+        out += [cv2.blur(im, (1, n)) for im in photos]
+    return out
 
 
 def warped_frame_pair(

@@ -117,3 +117,23 @@ def test_update_after_score_of_the_same_frame_equals_a_fresh_update():
         for name in ("mean", "var", "age"):
             np.testing.assert_allclose(getattr(models[0], name), getattr(models[1], name),
                                        rtol=1e-6, atol=1e-4)
+
+
+def test_violation_threshold_scales_with_the_vectors_noise():
+    """Noisy background vectors (+-1 px scatter) violate a fixed 0.75 px threshold in most
+    cells; scaled by their robust spread (threshold ~4.6 px) they do not, while an 8 px object
+    still does."""
+    rng = np.random.default_rng(0)
+    ys, xs = np.mgrid[4:100:4, 4:100:4]
+    pts = np.stack([xs.ravel(), ys.ravel()], 1).astype(np.float32)
+    cam = np.eye(3)
+    disp = rng.uniform(-1.0, 1.0, (len(pts), 2))
+    moving = (pts[:, 0] > 70) & (pts[:, 1] > 70)
+    disp[moving] += [8.0, 0.0]
+    w = np.ones(len(pts))
+    fixed = flow_violation_map(pts, disp, cam, weights=w, shape=(100, 100), threshold=0.75)
+    scaled = flow_violation_map(pts, disp, cam, weights=w, shape=(100, 100), threshold=0.75,
+                                noise_scale=4.0)
+    assert fixed[30, 30] > 0.3
+    assert scaled[30, 30] < 0.1
+    assert scaled[88, 88] > 0.9

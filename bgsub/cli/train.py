@@ -102,6 +102,12 @@ def register(subparsers: Any) -> None:
     data.add_argument("--curriculum", default=None, metavar="E:L,...",
                       help="grow the range: e.g. 100:1,200:2 = at most 1 before epoch 100, 2 before 200, "
                            "then all (default for dots with --max-shift > 1: 100:1,200:2,...)")
+    data.add_argument("--blur", type=_sigmas, default=(), metavar="S1,S2",
+                      help="shifted-images: also train on the photos blurred by Gaussians of these "
+                           "sigmas in px (soft or compressed footage), e.g. 1,2")
+    data.add_argument("--motion-blur", type=int, default=0, metavar="PX",
+                      help="shifted-images: also train on the photos box-blurred over PX pixels "
+                           "horizontally and vertically (a shaking or panning camera)")
     data.add_argument("--video-step", type=int, default=1, metavar="N", help="use every N-th video frame")
     data.add_argument("--video-scale", type=float, default=None, metavar="F", help="resize video frames")
     data.add_argument("--eval-pairs", type=int, default=1000, metavar="N",
@@ -110,6 +116,17 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--overwrite", action="store_true", help="replace an existing model file")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress bar and no summary")
     parser.set_defaults(handler=run)
+
+
+def _sigmas(text: str) -> tuple:
+    """``"1,2"`` -> ``(1.0, 2.0)``: positive blur sigmas for ``--blur``."""
+    try:
+        values = tuple(float(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected sigmas like 1,2, not {text!r}") from None
+    if not values or min(values) <= 0:
+        raise argparse.ArgumentTypeError(f"blur sigmas must be positive numbers, not {text!r}")
+    return values
 
 
 def _default_curriculum(max_range: float, step_epochs: int = 100) -> str:
@@ -164,8 +181,12 @@ def run(args: argparse.Namespace) -> int:
         source = training.RotatedDots(patch_size=p, max_angle=args.max_angle, curriculum=curriculum)
         description = f"random dots, rotations within +-{args.max_angle:g} deg"
     elif kind == IMAGES:
-        source = _imagedata().shifted_image_pairs(max_shift=max_shift, curriculum=curriculum, patch_size=p)
+        source = _imagedata().shifted_image_pairs(max_shift=max_shift, curriculum=curriculum,
+                                                  patch_size=p, blur=args.blur,
+                                                  motion_blur=args.motion_blur)
         description = f"shifted photographs, shifts up to {max_shift:g} px"
+        if args.blur or args.motion_blur > 1:
+            description += " (with blurred copies)"
     else:
         for path in args.data:
             if not Path(path).exists() and not any(ch in path for ch in "*?["):

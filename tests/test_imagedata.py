@@ -143,3 +143,20 @@ def test_missing_scikit_image_is_a_clear_error(monkeypatch):
     monkeypatch.setitem(sys.modules, "skimage.data", None)
     with pytest.raises(InputError, match="pip install"):
         load_photos(["camera"])
+
+
+def test_degraded_copies_follow_the_originals():
+    from bgsub.imagedata import degraded_copies
+
+    rng = np.random.default_rng(0)
+    photos = [rng.random((40, 50)).astype(np.float32), rng.random((30, 60)).astype(np.float32)]
+    out = degraded_copies(photos, blur=(1.0, 2.0), motion_blur=5)
+    assert len(out) == 2 + 2 * 2 + 2 * 2
+    assert out[0] is photos[0] and [im.shape for im in out[2:4]] == [(40, 50), (30, 60)]
+    detail = [float(np.abs(np.diff(im, axis=1)).mean()) for im in out[0:1] + out[2:3] + out[4:5]]
+    assert detail[0] > detail[1] > detail[2]  # sigma 1 blurs less than sigma 2
+    horizontal, vertical = out[6], out[8]  # the first photo box-blurred along x, then along y
+    assert np.abs(np.diff(horizontal, axis=1)).mean() < np.abs(np.diff(horizontal, axis=0)).mean()
+    assert np.abs(np.diff(vertical, axis=0)).mean() < np.abs(np.diff(vertical, axis=1)).mean()
+    with pytest.raises(InputError):
+        degraded_copies(photos, blur=(0.0,))

@@ -239,3 +239,10 @@ def test_cli_train_divergence_exits_1(tmp_path, capsys):
     assert main(args) == 1
     assert "diverged" in capsys.readouterr().err
     assert not (tmp_path / "m.npz").exists()
+
+
+def test_cli_train_bad_blur_is_a_usage_error(tmp_path, capsys):
+    args = ["train", "--data", "shifted-images", "--blur", "0,-1", "-o", str(tmp_path / "m.npz")]
+    assert main(args) == 2
+    assert "blur sigmas must be positive" in capsys.readouterr().err
+    assert not (tmp_path / "m.npz").exists()

@@ -102,7 +102,7 @@ def register(subparsers: Any) -> None:
     data.add_argument("--curriculum", default=None, metavar="E:L,...",
                       help="grow the range: e.g. 100:1,200:2 = at most 1 before epoch 100, 2 before 200, "
                            "then all (default for dots with --max-shift > 1: 100:1,200:2,...)")
-    data.add_argument("--blur", type=_sigmas, default=(), metavar="S1,S2",
+    data.add_argument("--blur", default=None, metavar="S1,S2",
                       help="shifted-images: also train on the photos blurred by Gaussians of these "
                            "sigmas in px (soft or compressed footage), e.g. 1,2")
     data.add_argument("--motion-blur", type=int, default=0, metavar="PX",
@@ -123,9 +123,9 @@ def _sigmas(text: str) -> tuple:
     try:
         values = tuple(float(v) for v in text.split(",") if v.strip())
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected sigmas like 1,2, not {text!r}") from None
+        raise InputError(f"--blur takes sigmas like 1,2, not {text!r}") from None
     if not values or min(values) <= 0:
-        raise argparse.ArgumentTypeError(f"blur sigmas must be positive numbers, not {text!r}")
+        raise InputError(f"--blur: blur sigmas must be positive numbers, not {text!r}")
     return values
 
 
@@ -182,7 +182,8 @@ def run(args: argparse.Namespace) -> int:
         description = f"random dots, rotations within +-{args.max_angle:g} deg"
     elif kind == IMAGES:
         source = _imagedata().shifted_image_pairs(max_shift=max_shift, curriculum=curriculum,
-                                                  patch_size=p, blur=args.blur,
+                                                  patch_size=p,
+                                                  blur=_sigmas(args.blur) if args.blur else (),
                                                   motion_blur=args.motion_blur)
         description = f"shifted photographs, shifts up to {max_shift:g} px"
         if args.blur or args.motion_blur > 1:

@@ -310,7 +310,8 @@ def flow_violation_map(
     gw, gh = (w + cell - 1) // cell, (h + cell - 1) // cell
     gx = np.clip((cur[:, 0] // cell).astype(np.intp), 0, gw - 1)
     gy = np.clip((cur[:, 1] // cell).astype(np.intp), 0, gh - 1)
-    viol = 1.0 / (1.0 + np.exp(-(err - threshold) / 0.25))
+    # Soft step; the clip keeps exp() finite for wild vectors (err of thousands of px).
+    viol = 1.0 / (1.0 + np.exp(-np.clip((err - threshold) / 0.25, -60.0, 60.0)))
     cells = gy[ok] * gw + gx[ok]
     num = np.bincount(cells, (wt * viol)[ok], minlength=gh * gw).reshape(gh, gw).astype(np.float32)
     den = np.bincount(cells, wt[ok], minlength=gh * gw).reshape(gh, gw).astype(np.float32)

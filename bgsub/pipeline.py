@@ -222,7 +222,6 @@ class MovingCameraEngine(Engine):
         threads: int = 1,
         violation_noise: float = 0.0,
     ) -> None:
-        self.violation_noise = float(violation_noise)
         self.work_width = int(work_width)
         self.motion_model = motion_model
         self.ransac_threshold = float(ransac_threshold)
@@ -230,6 +229,7 @@ class MovingCameraEngine(Engine):
         self.flow_boost = float(flow_boost)
         self.flow_damp = float(flow_damp)
         self.violation_threshold = float(violation_threshold)
+        self.violation_noise = float(violation_noise)
         self.threshold = float(threshold)
         self.min_area = int(min_area)
         self.close = int(close)
@@ -644,10 +644,10 @@ def _with_defaults(common: dict, **overrides: Any) -> dict:
 # leans on violation evidence to boost rather than to damp. How noisy its vectors are depends
 # on the footage (sharp BMS-26 vs blurred CDnet traffic), so a violation is a disagreement of
 # 0.75 px or 4 robust standard deviations of the frame's disagreements, whichever is larger
-# (BMS-26 0.67 -> 0.72, DAVIS 0.58 -> 0.63; the same rule gives compensated nothing). With the coarsest level read to
-# convergence its vectors support a homography (DAVIS perspective scenes: 0.58 vs 0.53 with a
-# similarity) at a tighter 1 px RANSAC threshold. Tuned on the real set (docs/BENCHMARKS.md,
-# issue 4).
+# (BMS-26 0.67 -> 0.72, DAVIS 0.58 -> 0.63; the same rule gives compensated nothing). With the
+# coarsest level read to convergence its vectors support a homography (DAVIS perspective
+# scenes: 0.58 vs 0.53 with a similarity) at a tighter 1 px RANSAC threshold. Tuned on the real
+# set (docs/BENCHMARKS.md, issue 4).
 _GRBM_COMMON = _with_defaults(_COMMON, ransac_threshold=1.0, flow_boost=1.5, flow_damp=0.2,
                               violation_threshold=0.75, violation_noise=4.0)
 

@@ -576,11 +576,8 @@ class GrbmEngine(MovingCameraEngine):
             return first
         # The prior may be wrong (the camera changed course): also try from scratch and keep
         # the reading more patches agree with.
-        flow = self._flow(prev_gray, gray, None)
-        weights = flow.weights
-        second = MotionResult(flow.centres, flow.disp, weights,
-                              self._fit(flow.centres, flow.disp, weights, gray.shape),
-                              self._vweights(flow))
+        flow, retry, _ = self._read(prev_gray, gray, None, self.finest)
+        second = MotionResult(flow.centres, flow.disp, flow.weights, retry, self._vweights(flow))
         if second.motion.ok and (not motion.ok or second.motion.n_inliers > motion.n_inliers):
             self._last_flow = flow
             return second

@@ -184,6 +184,7 @@ def estimate_flow(
     prior: Optional[np.ndarray] = None,
     coarse_model: str = "affine",
     min_texture: float = 0.05,
+    texture_scale: float = TEXTURE_SCALE,
     max_patches: Optional[int] = None,
     dense: bool = False,
     ransac_threshold: float = 1.0,
@@ -219,6 +220,12 @@ def estimate_flow(
         :func:`bgsub.global_motion.fit_global_motion`).
     min_texture : float
         Patches whose texture weight is below this are not evaluated (flat or single edge).
+    texture_scale : float
+        Smaller structure-tensor eigenvalue (gray values in [0, 1]) that maps to texture
+        weight 0.5: weight ``e / (e + texture_scale)``. The default weighs patches by their
+        texture up to strong texture; a much smaller scale (e.g. ``1e-5``) down-weights only
+        the nearly flat and edge-only patches and lets all textured ones count alike, which
+        suits blurred footage whose patches all have weak gradients.
     max_patches : int, optional
         Evaluate at most this many patches per level (the most textured): bounds the cost.
     dense : bool
@@ -286,7 +293,8 @@ def estimate_flow(
                 if i or j:
                     cands.append(np.array([[1.0, 0, i * step], [0, 1.0, j * step], [0, 0, 1]]))
         h_est = _best_start(pyr1[lvl], pyr2[lvl], cands, factor, model, p, cstride, rng,
-                            min_texture, max_patches, coarse_model, ransac_threshold, h_est)
+                            min_texture, max_patches, coarse_model, ransac_threshold, h_est,
+                            texture_scale=texture_scale)
         started = True  # the start's readout was the coarsest level's first
     else:
         started = False
@@ -312,12 +320,13 @@ def estimate_flow(
         # The refining grid is every (pre_stride / fine_stride)-th patch of the final grid: cut
         # and project the final grid's first-frame patches once and take the refining subset.
         _level(pyr1[fine], pyr1[fine], np.eye(3), model, p, fine_stride, rng, min_texture,
-               max_patches, cache=cache, read=False)
+               max_patches, cache=cache, read=False, texture_scale=texture_scale)
         _subgrid(cache, pyr1[fine].shape, p, fine_stride, pre_stride, min_texture, model)
     for lvl, step in plan:
         factor = 0.5**lvl
         est = _level(pyr1[lvl], pyr2[lvl], _scaled(h_est, factor), model, p, step, rng,
-                     min_texture, max_patches, accept_edge=lvl > fine, cache=cache)
+                     min_texture, max_patches, accept_edge=lvl > fine, cache=cache,
+                     texture_scale=texture_scale)
         fitted = _fit_level(est, coarse_model, ransac_threshold, pyr1[lvl].shape)
         if fitted.ok:
             h_est = _scaled(fitted.matrix, 1.0 / factor)
@@ -326,7 +335,7 @@ def estimate_flow(
 
     factor = 0.5**fine
     est = _level(pyr1[fine], pyr2[fine], _scaled(h_est, factor), model, p, fine_stride, rng,
-                 min_texture, max_patches, cache=cache)
+                 min_texture, max_patches, cache=cache, texture_scale=texture_scale)
     up = np.float32(2**fine)
     out = FlowEstimate(
         centres=est["centres"] * up, disp=est["disp"] * up, confidence=est["conf"],
@@ -340,7 +349,8 @@ def estimate_flow(
 
 
 def _level(g1, g2, h_est, model, p, stride, rng, min_texture, max_patches, *,
-           accept_edge: bool = False, cache: Optional[dict] = None, read: bool = True) -> dict:
+           accept_edge: bool = False, cache: Optional[dict] = None, read: bool = True,
+           texture_scale: float = TEXTURE_SCALE) -> dict:
     """Patch motion at one level after pre-warping ``g2`` by ``h_est`` (that level's pixels).
 
     ``accept_edge``: keep readings at the edge of the model's range (a larger motion, clipped).
@@ -366,7 +376,7 @@ def _level(g1, g2, h_est, model, p, stride, rng, min_texture, max_patches, *,
                     cache[tkey] = tmap
             ci = centres.astype(np.intp)  # centres are integers for odd p
             e = tmap[ci[:, 1], ci[:, 0]]
-            tex = (e / (e + np.float32(TEXTURE_SCALE))).astype(np.float32)
+            tex = (e / (e + np.float32(texture_scale))).astype(np.float32)
         pick = np.flatnonzero(tex >= min_texture)
         if max_patches is not None and len(pick) > max_patches:
             pick = pick[np.argsort(-tex[pick], kind="stable")[:max_patches]]
@@ -399,12 +409,13 @@ def _level(g1, g2, h_est, model, p, stride, rng, min_texture, max_patches, *,
 
 
 def _best_start(g1, g2, cands, factor, model, p, stride, rng, min_texture, max_patches,
-                coarse_model, threshold, fallback) -> np.ndarray:
+                coarse_model, threshold, fallback, *, texture_scale: float = TEXTURE_SCALE
+                ) -> np.ndarray:
     """The candidate start (full-resolution homographies) most coarsest-level patches agree
     with after refinement, read in ONE batched inference over all candidates."""
     cache: dict = {}
     est0 = _level(g1, g1, np.eye(3), None, p, stride, rng, min_texture, max_patches,
-                  cache=cache, read=False)
+                  cache=cache, read=False, texture_scale=texture_scale)
     centres, tex, pick, x_pick = est0["centres"], est0["texture"], cache["pick"], cache["x"]
     if len(pick) == 0:
         return fallback

@@ -19,6 +19,7 @@ return an empty mask (or, for a scene cut, restart the model) and say why in ``l
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from abc import abstractmethod
 from typing import Any, Optional
@@ -480,13 +481,21 @@ class GrbmEngine(MovingCameraEngine):
                  max_motion: float = 32.0, min_texture: float = 0.02, max_patches: int = 0,
                  iterations: int = 2, retry_below: float = 0.6, prior_levels: int = 0,
                  search: int = 0, coarse_iterations: int = 3, finest: int = 0,
-                 refine_stride: int = 16, coarser_below: float = 0.5, **kwargs: Any) -> None:
+                 refine_stride: int = 16, coarser_below: float = 0.5,
+                 texture_scale: float = 1e-5, contrast_floor: float = 0.005,
+                 **kwargs: Any) -> None:
         super().__init__(**kwargs)
         from bgsub.rbm import load_model
 
         # A name or path, a GatedRBM, or any patch-motion model with the same contract (see
         # bgsub.flowfield.patch_motion).
         self.model = model if hasattr(model, "patch_motion") else load_model(model)
+        if (contrast_floor > 0 and getattr(self.model, "normalization", None) == "contrast"
+                and contrast_floor != self.model.contrast_floor):
+            # A copy with its own readout caches: the model object may be shared (a caller's).
+            self.model = dataclasses.replace(self.model, contrast_floor=float(contrast_floor),
+                                             _cache={})
+        self.texture_scale = float(texture_scale)
         self.stride = int(stride)
         self.levels = int(levels) if levels > 0 else None
         self.max_motion = float(max_motion)
@@ -526,7 +535,8 @@ class GrbmEngine(MovingCameraEngine):
             levels = self.prior_levels if self.prior_levels > 0 else None
         return estimate_flow(prev_gray, gray, model=self.model, stride=self.stride,
                              levels=levels, max_motion=self.max_motion, prior=prior,
-                             min_texture=self.min_texture, max_patches=self.max_patches,
+                             min_texture=self.min_texture, texture_scale=self.texture_scale,
+                             max_patches=self.max_patches,
                              iterations=self.iterations, search=self.search,
                              coarse_iterations=self.coarse_iterations,
                              finest=self.finest if finest is None else finest,
@@ -669,6 +679,13 @@ _GRBM_COMMON = _with_defaults(_COMMON, ransac_threshold=1.0, flow_boost=1.5, flo
                                    "accuracy"),
         "coarse_iterations": Param(3, "readouts at the coarsest pyramid level, each re-warped "
                                       "by the last fit (finer levels start close and read once)"),
+        "texture_scale": Param(1e-5, "structure-tensor eigenvalue (gray in [0, 1]) at which a "
+                                     "patch's texture weight is 0.5: small = every textured "
+                                     "patch counts alike, only near-flat and edge-only ones are "
+                                     "down-weighted (suits blurred footage)"),
+        "contrast_floor": Param(0.005, "patch pairs with a lower RMS contrast (gray in [0, 1]) "
+                                       "are flat and not read (0 = the model's own, 0.02 for "
+                                       "the shipped models)"),
         "coarser_below": Param(0.5, "when fewer than this fraction of the final readout's "
                                     "patches agree with the fitted motion (motion blur), also "
                                     "read up to two levels coarser and keep the best-supported "

@@ -228,3 +228,21 @@ def test_start_candidates_get_no_support_from_clipped_readings():
     chosen = _best_start(g1, g2, [wrong, np.eye(3)], 1.0, ClippingMatcher(), 13, 8, 3, 0.0,
                          None, "affine", 1.0, np.eye(3))
     assert abs(chosen[0, 2] - 2) < 0.5, chosen
+
+
+def test_smaller_texture_scale_weighs_weak_texture_alike_and_still_drops_flat_patches():
+    """``texture_scale`` sets where the texture weight reaches 0.5: a small one lets a
+    low-contrast (blurred) texture count like a strong one, while flat patches stay out."""
+    h, w = 96, 128
+    base = _texture(h, w, seed=3)[:h, :w].astype(np.float32) / 255
+    weak = (0.5 + 0.1 * (base - base.mean())).astype(np.float32)  # a tenth of the contrast
+    weak[:, :40] = 0.5  # flat band
+    moved = _shift(weak, 1, 0, h, w)
+    strong = lambda f: f.texture[f.centres[:, 0] > 60]  # noqa: E731
+    flat = lambda f: f.texture[f.centres[:, 0] < 30]  # noqa: E731
+    default = estimate_flow(weak, moved, model=OracleMatcher(), levels=1, min_texture=0.0)
+    small = estimate_flow(weak, moved, model=OracleMatcher(), levels=1, min_texture=0.0,
+                          texture_scale=1e-5)
+    assert np.median(strong(default)) < 0.1  # the default scale: weak texture counts little
+    assert np.median(strong(small)) > 0.6
+    assert np.all(flat(small) < 0.01) and np.all(flat(default) < 0.01)

@@ -211,3 +211,39 @@ def test_poorly_supported_readout_is_replaced_by_a_coarser_one(monkeypatch, coar
     eng._motion(gray, gray, None)
     assert eng._last_flow.finest == expected
     assert calls == read
+
+
+def test_grbm_contrast_floor_applies_to_its_own_copy_of_the_model():
+    """The engine's ``contrast_floor`` replaces the model's for its readouts only: a model
+    object the caller passed (or another engine shares) keeps its own."""
+    from bgsub.rbm import load_model
+
+    model = load_model("natural")
+    own = model.contrast_floor
+    eng = create_engine("grbm", model=model, contrast_floor=0.005)
+    assert eng.model.contrast_floor == 0.005
+    assert model.contrast_floor == own
+    assert create_engine("grbm", model=model, contrast_floor=0).model is model
+
+
+def test_grbm_reads_a_low_contrast_pan_with_the_default_contrast_floor():
+    """A pan filmed at low contrast (RMS ~3 gray levels per patch, below the shipped models'
+    0.02 floor of 5.1; a gentle ramp keeps the frame itself above the blank-frame test) is read
+    by the default engine and missed with the model's own floor."""
+    from test_flowfield import _shift, _texture
+
+    h, w = 120, 160
+    base = _texture(h, w, seed=11)[:h, :w].astype(np.float32)
+    ramp = np.linspace(-15, 15, w, dtype=np.float32)[None, :]
+    low = np.clip(128 + 0.05 * (base - base.mean()) + ramp, 0, 255)
+    frames = [cv2.cvtColor(_shift(low, -1.5 * k, 0, h, w).round().astype(np.uint8),
+                           cv2.COLOR_GRAY2BGR) for k in range(3)]
+    found = {}
+    for floor in (0.005, 0):
+        eng = create_engine("grbm", contrast_floor=floor, work_width=0)
+        for f in frames:
+            eng.apply(f)
+        assert eng.last_status != "fallback: blank or textureless frame"
+        found[floor] = eng._last.motion
+    assert found[0.005].ok and abs(found[0.005].matrix[0, 2] + 1.5) < 0.5
+    assert not found[0].ok or abs(found[0].matrix[0, 2] + 1.5) > 0.5

@@ -15,7 +15,7 @@ Coordinates: a pyramid level ``l`` pixel ``x_l`` is ``x / 2**l`` in full-resolut
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, List, Optional
+from typing import Any, List, Optional, Tuple
 
 import cv2
 import numpy as np
@@ -193,6 +193,7 @@ def estimate_flow(
     coarse_iterations: int = 1,
     finest: int = 0,
     refine_stride: Optional[int] = None,
+    search_below: float = 1.0,
 ) -> FlowEstimate:
     """Patch displacements between two frames, coarse to fine.
 
@@ -253,6 +254,11 @@ def estimate_flow(
         Also start the coarsest level from shifts on a ``(2 search + 1)^2`` grid (steps of
         about the model's range at that level), for shaking cameras whose motion the previous
         frame does not predict; each start costs one readout of the coarsest level.
+    search_below : float
+        Read the grid of ``search`` only when fewer than this fraction of the coarsest level's
+        patches agree with the best of the prior and no motion (1 = always): a shake beyond
+        the level's range leaves few in agreement, while on ordinary frames the grid's
+        shifted starts only add chances for a wrong one to win.
 
     Returns
     -------
@@ -281,20 +287,29 @@ def estimate_flow(
     h_est = np.eye(3) if prior is None else np.asarray(prior, np.float64)
     status = "ok"
     if (prior is not None or search > 0) and levels > 1:
-        # Several hypotheses for the start: the prior (a steady pan continues), no motion (a
-        # shaking camera reverses) and a grid of shifts ``search`` steps of about the model's
-        # range on each side; the coarsest level keeps the one most patches agree with.
+        # Several hypotheses for the start: the prior (a steady pan continues) and no motion (a
+        # shaking camera reverses); the coarsest level keeps the one most patches agree with.
+        # A shake beyond the level's range defeats both: then (when fewer than search_below of
+        # the patches agree) a grid of shifts ``search`` steps of about the model's range on
+        # each side is read too.
         lvl = levels - 1
         factor = 0.5**lvl
         step = max(1.0, rng - 1.0) / factor
-        cands = [np.eye(3)] + ([h_est] if prior is not None else [])
-        for i in range(-search, search + 1):
-            for j in range(-search, search + 1):
-                if i or j:
-                    cands.append(np.array([[1.0, 0, i * step], [0, 1.0, j * step], [0, 0, 1]]))
-        h_est = _best_start(pyr1[lvl], pyr2[lvl], cands, factor, model, p, cstride, rng,
-                            min_texture, max_patches, coarse_model, ransac_threshold, h_est,
-                            texture_scale=texture_scale)
+        args = (pyr1[lvl], pyr2[lvl])
+        rest = (factor, model, p, cstride, rng, min_texture, max_patches, coarse_model,
+                ransac_threshold)
+        basic = [np.eye(3)] + ([h_est] if prior is not None else [])
+        grid = [np.array([[1.0, 0, i * step], [0, 1.0, j * step], [0, 0, 1]])
+                for i in range(-search, search + 1) for j in range(-search, search + 1)
+                if i or j]
+        if grid and search_below >= 1.0:
+            basic, grid = basic + grid, []  # one batched readout of all of them
+        h_est, support = _best_start(*args, basic, *rest, h_est, texture_scale=texture_scale)
+        if grid and support < search_below:
+            h_grid, grid_support = _best_start(*args, grid, *rest, h_est,
+                                               texture_scale=texture_scale)
+            if grid_support > support:
+                h_est = h_grid
         started = True  # the start's readout was the coarsest level's first
     else:
         started = False
@@ -410,15 +425,16 @@ def _level(g1, g2, h_est, model, p, stride, rng, min_texture, max_patches, *,
 
 def _best_start(g1, g2, cands, factor, model, p, stride, rng, min_texture, max_patches,
                 coarse_model, threshold, fallback, *, texture_scale: float = TEXTURE_SCALE
-                ) -> np.ndarray:
+                ) -> Tuple[np.ndarray, float]:
     """The candidate start (full-resolution homographies) most coarsest-level patches agree
-    with after refinement, read in ONE batched inference over all candidates."""
+    with after refinement, read in ONE batched inference over all candidates, and the fraction
+    of the level's evaluated patches that agree with it (0 when none does)."""
     cache: dict = {}
     est0 = _level(g1, g1, np.eye(3), None, p, stride, rng, min_texture, max_patches,
                   cache=cache, read=False, texture_scale=texture_scale)
     centres, tex, pick, x_pick = est0["centres"], est0["texture"], cache["pick"], cache["x"]
     if len(pick) == 0:
-        return fallback
+        return fallback, 0.0
     scaled = [_scaled(c, factor) for c in cands]
     ys = [_patches_at(_warp_back(g2, h) if not is_identity(h) else g2,
                       centres[pick], p) for h in scaled]
@@ -443,7 +459,7 @@ def _best_start(g1, g2, cands, factor, model, p, stride, rng, min_texture, max_p
         fitted = _fit_level(est, coarse_model, threshold, g1.shape)
         if fitted.ok and fitted.n_inliers > best:
             best, best_h = fitted.n_inliers, _scaled(fitted.matrix, 1.0 / factor)
-    return best_h
+    return best_h, max(best, 0) / k
 
 
 def _subgrid(cache: dict, shape: tuple, p: int, stride: int, sub_stride: int,

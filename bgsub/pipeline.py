@@ -480,10 +480,10 @@ class GrbmEngine(MovingCameraEngine):
     def __init__(self, *, model: Any = "natural", stride: int = 8, levels: int = 0,
                  max_motion: float = 32.0, min_texture: float = 0.02, max_patches: int = 0,
                  iterations: int = 2, retry_below: float = 0.6, prior_levels: int = 0,
-                 search: int = 0, coarse_iterations: int = 3, finest: int = 0,
+                 search: int = 1, coarse_iterations: int = 3, finest: int = 0,
                  refine_stride: int = 16, coarser_below: float = 0.5,
                  texture_scale: float = 1e-5, contrast_floor: float = 0.005,
-                 **kwargs: Any) -> None:
+                 search_below: float = 0.5, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         from bgsub.rbm import load_model
 
@@ -496,6 +496,7 @@ class GrbmEngine(MovingCameraEngine):
             self.model = dataclasses.replace(self.model, contrast_floor=float(contrast_floor),
                                              _cache={})
         self.texture_scale = float(texture_scale)
+        self.search_below = float(search_below)
         self.stride = int(stride)
         self.levels = int(levels) if levels > 0 else None
         self.max_motion = float(max_motion)
@@ -540,7 +541,8 @@ class GrbmEngine(MovingCameraEngine):
                              iterations=self.iterations, search=self.search,
                              coarse_iterations=self.coarse_iterations,
                              finest=self.finest if finest is None else finest,
-                             refine_stride=self.refine_stride)
+                             refine_stride=self.refine_stride,
+                             search_below=self.search_below)
 
     def _flow_colour(self, shape: tuple) -> Optional[np.ndarray]:
         flow = getattr(self, "_last_flow", None)
@@ -690,8 +692,11 @@ _GRBM_COMMON = _with_defaults(_COMMON, ransac_threshold=1.0, flow_boost=1.5, flo
                                     "patches agree with the fitted motion (motion blur), also "
                                     "read up to two levels coarser and keep the best-supported "
                                     "(0 = never)"),
-        "search": Param(0, "also start the coarsest level from a (2 search + 1)^2 grid of "
+        "search": Param(1, "also start the coarsest level from a (2 search + 1)^2 grid of "
                            "shifts (shaking cameras); 0 = prior and identity only"),
+        "search_below": Param(0.5, "with search > 0: read the grid of shifts only when fewer "
+                                   "than this fraction of the coarsest patches agree with the "
+                                   "best of the previous motion and no motion (1 = always)"),
         "prior_levels": Param(0, "pyramid levels used when the previous frame's motion "
                                  "predicts this one (0 = always the full pyramid)"),
         "retry_below": Param(0.6, "with prior_levels > 0: when fewer than this fraction of the "

@@ -225,8 +225,8 @@ def test_start_candidates_get_no_support_from_clipped_readings():
     moved = _shift(base, 2, 0, h, w)
     g1, g2 = base.astype(np.float32) / 255, moved.astype(np.float32) / 255
     wrong = np.array([[1.0, 0, -3.0], [0, 1.0, 0], [0, 0, 1]])  # residual 5: read as 3
-    chosen = _best_start(g1, g2, [wrong, np.eye(3)], 1.0, ClippingMatcher(), 13, 8, 3, 0.0,
-                         None, "affine", 1.0, np.eye(3))
+    chosen, support = _best_start(g1, g2, [wrong, np.eye(3)], 1.0, ClippingMatcher(), 13, 8, 3,
+                                  0.0, None, "affine", 1.0, np.eye(3))
     assert abs(chosen[0, 2] - 2) < 0.5, chosen
 
 
@@ -246,3 +246,44 @@ def test_smaller_texture_scale_weighs_weak_texture_alike_and_still_drops_flat_pa
     assert np.median(strong(default)) < 0.1  # the default scale: weak texture counts little
     assert np.median(strong(small)) > 0.6
     assert np.all(flat(small) < 0.01) and np.all(flat(default) < 0.01)
+
+
+@pytest.mark.parametrize("search_below, grid_read", [(0.5, True), (0.0, False), (1.0, True)])
+def test_a_shake_beyond_the_range_is_found_by_the_grid_of_starts(search_below, grid_read):
+    """A shake the coarsest level cannot see from no motion is found from the grid of shifted
+    starts, which is read only when the start's support is below ``search_below``."""
+    h, w = 128, 160
+    base = _texture(h, w, seed=4)[:h, :w]
+    # 4 px at level 1: beyond the matcher's +-3 (clipped), 2 px from the grid's +4 px start.
+    moved = _shift(base, 8, 0, h, w)
+    model = CountingMatcher()
+    flow = estimate_flow(base, moved, model=model, levels=2, stride=8, min_texture=0.0,
+                         search=1, search_below=search_below)
+    inner = flow.valid & (flow.centres[:, 0] > 20) & (flow.centres[:, 0] < w - 20)
+    found = inner.sum() > 10 and abs(np.median(flow.disp[inner, 0]) - 8) < 0.5
+    assert found == grid_read
+
+
+def test_the_grid_of_starts_is_not_read_when_the_start_is_supported():
+    h, w = 128, 160
+    base = _texture(h, w, seed=4)[:h, :w]
+    moved = _shift(base, 2, 0, h, w)
+    kw = dict(levels=2, stride=8, min_texture=0.0, search=1)
+    counts = []
+    for search_below in (0.5, 1.0):
+        model = CountingMatcher()
+        flow = estimate_flow(base, moved, model=model, search_below=search_below, **kw)
+        assert abs(np.median(flow.disp[flow.valid, 0]) - 2) < 0.5
+        counts.append(model.patches)
+    assert counts[0] < counts[1] / 2  # 2 starts read instead of 10
+
+
+class CountingMatcher(ClippingMatcher):
+    """Clips like the gated RBM and counts the patches it reads."""
+
+    def __init__(self):
+        self.patches = 0
+
+    def patch_motion(self, x_raw, y_raw, *, max_disp):
+        self.patches += len(x_raw)
+        return super().patch_motion(x_raw, y_raw, max_disp=max_disp)

@@ -202,7 +202,7 @@ def test_poorly_supported_readout_is_replaced_by_a_coarser_one(monkeypatch, coar
     support = {0: 0.3, 1: 0.9, 2: 0.6}
     calls = []
 
-    def fake_read(prev, gray, prior, finest):
+    def fake_read(prev, gray, prior, finest, stride=None):
         calls.append(finest)
         return _fake_reading(finest, support[finest])
 
@@ -247,3 +247,41 @@ def test_grbm_reads_a_low_contrast_pan_with_the_default_contrast_floor():
         found[floor] = eng._last.motion
     assert found[0.005].ok and abs(found[0.005].matrix[0, 2] + 1.5) < 0.5
     assert not found[0].ok or abs(found[0].matrix[0, 2] + 1.5) > 0.5
+
+
+def test_coarser_rereads_use_the_coarser_stride(monkeypatch):
+    """The fallback readouts one and two levels coarser read on ``coarser_stride``'s grid; the
+    first readout on the engine's ``stride``."""
+    eng = create_engine("grbm", model=OracleMatcher(), coarser_below=0.95, stride=8,
+                        coarser_stride=20)
+    strides = []
+
+    def fake_read(prev, gray, prior, finest, stride=None):
+        strides.append((finest, stride))
+        return _fake_reading(finest, 0.3)
+
+    monkeypatch.setattr(eng, "_read", fake_read)
+    gray = np.zeros((60, 80), np.uint8)
+    eng._motion(gray, gray, None)
+    assert strides == [(0, None), (1, 20), (2, 20)]
+
+
+def test_coarser_stride_reaches_the_flow_estimate(monkeypatch):
+    import bgsub.pipeline as pipeline
+
+    seen = []
+    real = pipeline.estimate_flow
+
+    def spy(*args, **kw):
+        seen.append((kw["finest"], kw["stride"]))
+        return real(*args, **kw)
+
+    monkeypatch.setattr(pipeline, "estimate_flow", spy)
+    # coarser_below above 1: every frame is re-read coarser, even a perfectly supported one.
+    eng = create_engine("grbm", model=OracleMatcher(), stride=8, coarser_stride=16,
+                        coarser_below=1.01, work_width=0)
+    rng = np.random.default_rng(0)
+    frame = cv2.GaussianBlur((rng.random((240, 320)) * 255).astype(np.uint8), (0, 0), 1.5)
+    eng.apply(frame)
+    eng.apply(np.roll(frame, 2, axis=1))
+    assert (0, 8) in seen and (1, 16) in seen

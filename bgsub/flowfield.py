@@ -255,10 +255,11 @@ def estimate_flow(
         about the model's range at that level), for shaking cameras whose motion the previous
         frame does not predict; each start costs one readout of the coarsest level.
     search_below : float
-        Read the grid of ``search`` only when fewer than this fraction of the coarsest level's
-        patches agree with the best of the prior and no motion (1 = always): a shake beyond
-        the level's range leaves few in agreement, while on ordinary frames the grid's
-        shifted starts only add chances for a wrong one to win.
+        With a ``prior``, read the grid of ``search`` only when fewer than this fraction of the
+        coarsest level's patches agree with the better of the prior and no motion (1 =
+        always): a shake beyond the level's range leaves few in agreement, while on ordinary
+        frames the grid's shifted starts only add chances for a wrong one to win. Without a
+        prior (a first frame) the grid is always read: nothing says the camera is still.
 
     Returns
     -------
@@ -290,8 +291,9 @@ def estimate_flow(
         # Several hypotheses for the start: the prior (a steady pan continues) and no motion (a
         # shaking camera reverses); the coarsest level keeps the one most patches agree with.
         # A shake beyond the level's range defeats both: then (when fewer than search_below of
-        # the patches agree) a grid of shifts ``search`` steps of about the model's range on
-        # each side is read too.
+        # the patches agree, or with no prior to go by) a grid of shifts ``search`` steps of
+        # about the model's range on each side is read too. (A first frame of a fast pan whose
+        # tracked subject reads as "no motion" would otherwise set a wrong prior for the next.)
         lvl = levels - 1
         factor = 0.5**lvl
         step = max(1.0, rng - 1.0) / factor
@@ -305,7 +307,7 @@ def estimate_flow(
         if grid and search_below >= 1.0:
             basic, grid = basic + grid, []  # one batched readout of all of them
         h_est, support = _best_start(*args, basic, *rest, h_est, texture_scale=texture_scale)
-        if grid and support < search_below:
+        if grid and (support < search_below or prior is None):
             h_grid, grid_support = _best_start(*args, grid, *rest, h_est,
                                                texture_scale=texture_scale)
             if grid_support > support:

@@ -705,7 +705,8 @@ _GRBM_COMMON = _with_defaults(_COMMON, ransac_threshold=1.0, flow_boost=1.5, flo
                            "shifts (shaking cameras); 0 = prior and identity only"),
         "search_below": Param(0.5, "with search > 0: read the grid of shifts only when fewer "
                                    "than this fraction of the coarsest patches agree with the "
-                                   "best of the previous motion and no motion (1 = always)"),
+                                   "better of the previous motion and no motion (1 = always; "
+                                   "always on a first frame)"),
         "prior_levels": Param(0, "pyramid levels used when the previous frame's motion "
                                  "predicts this one (0 = always the full pyramid)"),
         "retry_below": Param(0.6, "with prior_levels > 0: when fewer than this fraction of the "

@@ -250,32 +250,38 @@ def test_smaller_texture_scale_weighs_weak_texture_alike_and_still_drops_flat_pa
 
 @pytest.mark.parametrize("search_below, grid_read", [(0.5, True), (0.0, False), (1.0, True)])
 def test_a_shake_beyond_the_range_is_found_by_the_grid_of_starts(search_below, grid_read):
-    """A shake the coarsest level cannot see from no motion is found from the grid of shifted
-    starts, which is read only when the start's support is below ``search_below``."""
+    """A shake the coarsest level cannot see from the prior (a still camera) is found from the
+    grid of shifted starts, which is read only when the start's support is below
+    ``search_below``."""
     h, w = 128, 160
     base = _texture(h, w, seed=4)[:h, :w]
     # 4 px at level 1: beyond the matcher's +-3 (clipped), 2 px from the grid's +4 px start.
     moved = _shift(base, 8, 0, h, w)
     model = CountingMatcher()
     flow = estimate_flow(base, moved, model=model, levels=2, stride=8, min_texture=0.0,
-                         search=1, search_below=search_below)
+                         search=1, search_below=search_below, prior=np.eye(3))
     inner = flow.valid & (flow.centres[:, 0] > 20) & (flow.centres[:, 0] < w - 20)
     found = inner.sum() > 10 and abs(np.median(flow.disp[inner, 0]) - 8) < 0.5
     assert found == grid_read
 
 
-def test_the_grid_of_starts_is_not_read_when_the_start_is_supported():
+@pytest.mark.parametrize("prior, grid_read", [(np.eye(3), False), (None, True)])
+def test_the_grid_of_starts_is_read_only_without_a_supported_start(prior, grid_read):
+    """With a prior whose start most patches agree with, the grid is not read; on a first
+    frame (no prior) it always is."""
     h, w = 128, 160
     base = _texture(h, w, seed=4)[:h, :w]
     moved = _shift(base, 2, 0, h, w)
-    kw = dict(levels=2, stride=8, min_texture=0.0, search=1)
+    kw = dict(levels=2, stride=8, min_texture=0.0, search=1, prior=prior)
     counts = []
     for search_below in (0.5, 1.0):
         model = CountingMatcher()
         flow = estimate_flow(base, moved, model=model, search_below=search_below, **kw)
         assert abs(np.median(flow.disp[flow.valid, 0]) - 2) < 0.5
         counts.append(model.patches)
-    assert counts[0] < counts[1] / 2  # 2 starts read instead of 10
+    # Without the grid 2 starts are read instead of 10 (the later levels cost the same).
+    assert (counts[0] < counts[1] / 2) == (not grid_read)
+    assert (counts[0] == counts[1]) == grid_read
 
 
 class CountingMatcher(ClippingMatcher):

@@ -304,10 +304,10 @@ def estimate_flow(
         grid = [np.array([[1.0, 0, i * step], [0, 1.0, j * step], [0, 0, 1]])
                 for i in range(-search, search + 1) for j in range(-search, search + 1)
                 if i or j]
-        if grid and search_below >= 1.0:
-            basic, grid = basic + grid, []  # one batched readout of all of them
+        if grid and (search_below >= 1.0 or prior is None):
+            basic, grid = basic + grid, []  # read anyway: one batched readout of all of them
         h_est, support = _best_start(*args, basic, *rest, h_est, texture_scale=texture_scale)
-        if grid and (support < search_below or prior is None):
+        if grid and support < search_below:
             h_grid, grid_support = _best_start(*args, grid, *rest, h_est,
                                                texture_scale=texture_scale)
             if grid_support > support:

@@ -497,7 +497,6 @@ class GrbmEngine(MovingCameraEngine):
             self.model = dataclasses.replace(self.model, contrast_floor=float(contrast_floor),
                                              _cache={})
         self.texture_scale = float(texture_scale)
-        self.search_below = float(search_below)
         self.stride = int(stride)
         self.levels = int(levels) if levels > 0 else None
         self.max_motion = float(max_motion)
@@ -507,6 +506,7 @@ class GrbmEngine(MovingCameraEngine):
         self.retry_below = float(retry_below)
         self.prior_levels = int(prior_levels)
         self.search = max(0, int(search))
+        self.search_below = float(search_below)
         self.coarse_iterations = max(1, int(coarse_iterations))
         self.finest = max(0, int(finest))
         self.refine_stride = int(refine_stride) if refine_stride > 0 else None

@@ -287,6 +287,9 @@ def estimate_flow(
 
     h_est = np.eye(3) if prior is None else np.asarray(prior, np.float64)
     status = "ok"
+    # The first frame's grids, texture maps, patches and their projections, per level and
+    # stride (see _level): shared by the start's readout and every later readout of a level.
+    cache: dict = {}
     if (prior is not None or search > 0) and levels > 1:
         # Several hypotheses for the start: the prior (a steady pan continues) and no motion (a
         # shaking camera reverses); the coarsest level keeps the one most patches agree with.
@@ -306,10 +309,11 @@ def estimate_flow(
                 if i or j]
         if grid and (search_below >= 1.0 or prior is None):
             basic, grid = basic + grid, []  # read anyway: one batched readout of all of them
-        h_est, support = _best_start(*args, basic, *rest, h_est, texture_scale=texture_scale)
+        h_est, support = _best_start(*args, basic, *rest, h_est, texture_scale=texture_scale,
+                                     cache=cache)
         if grid and support < search_below:
             h_grid, grid_support = _best_start(*args, grid, *rest, h_est,
-                                               texture_scale=texture_scale)
+                                               texture_scale=texture_scale, cache=cache)
             if grid_support > support:
                 h_est = h_grid
         started = True  # the start's readout was the coarsest level's first
@@ -331,7 +335,6 @@ def estimate_flow(
     if refine_stride is not None:
         pre_stride = max(4, int(round(int(refine_stride) / 2**fine)))
     plan += [(fine, pre_stride)] * (iterations - 1)
-    cache: dict = {}
     if iterations > 1 and pre_stride != fine_stride and pre_stride % fine_stride == 0 \
             and max_patches is None and not hasattr(model, "patch_motion"):
         # The refining grid is every (pre_stride / fine_stride)-th patch of the final grid: cut
@@ -426,12 +429,16 @@ def _level(g1, g2, h_est, model, p, stride, rng, min_texture, max_patches, *,
 
 
 def _best_start(g1, g2, cands, factor, model, p, stride, rng, min_texture, max_patches,
-                coarse_model, threshold, fallback, *, texture_scale: float = TEXTURE_SCALE
-                ) -> Tuple[np.ndarray, float]:
+                coarse_model, threshold, fallback, *, texture_scale: float = TEXTURE_SCALE,
+                cache: Optional[dict] = None) -> Tuple[np.ndarray, float]:
     """The candidate start (full-resolution homographies) most coarsest-level patches agree
     with after refinement, read in ONE batched inference over all candidates, and the fraction
-    of the level's evaluated patches that agree with it (0 when none does)."""
-    cache: dict = {}
+    of the level's evaluated patches that agree with it (0 when none does).
+
+    ``cache``: :func:`_level`'s cache for ``g1``, so the level's later readouts reuse the
+    first frame's grid, texture, patches and projections cut here (a fresh one if omitted)."""
+    if cache is None:
+        cache = {}
     est0 = _level(g1, g1, np.eye(3), None, p, stride, rng, min_texture, max_patches,
                   cache=cache, read=False, texture_scale=texture_scale)
     centres, tex, pick, x_pick = est0["centres"], est0["texture"], cache["pick"], cache["x"]
@@ -440,7 +447,7 @@ def _best_start(g1, g2, cands, factor, model, p, stride, rng, min_texture, max_p
     scaled = [_scaled(c, factor) for c in cands]
     ys = [_patches_at(_warp_back(g2, h) if not is_identity(h) else g2,
                       centres[pick], p) for h in scaled]
-    xf = _x_features(model, x_pick, None, None)
+    xf = _x_features(model, x_pick, cache, (g1.shape, stride))
     if xf is not None:
         xf = xf.take(np.tile(np.arange(len(pick)), len(cands)))
     d, c, flat = patch_motion(model, np.tile(x_pick, (len(cands), 1)), np.concatenate(ys),

@@ -372,7 +372,8 @@ def raw_patch_motion(
     """
     fx = x_features if x_features is not None else patch_features(model, x_raw, side="x")
     fy = patch_features(model, y_raw, side="y")
-    f = fx.proj * fy.proj
+    # Factor products in place in fy's projections (fy is ours; fx may be a caller's cache).
+    f = np.multiply(fy.proj, fx.proj, out=fy.proj)
     a = f @ model.whf.T
     if model.normalization == "contrast":
         rms = np.sqrt(0.5 * (fx.energy + fy.energy))

@@ -194,6 +194,7 @@ def estimate_flow(
     finest: int = 0,
     refine_stride: Optional[int] = None,
     search_below: float = 1.0,
+    start_tolerance: float = 0.0,
 ) -> FlowEstimate:
     """Patch displacements between two frames, coarse to fine.
 
@@ -260,6 +261,13 @@ def estimate_flow(
         always): a shake beyond the level's range leaves few in agreement, while on ordinary
         frames the grid's shifted starts only add chances for a wrong one to win. Without a
         prior (a first frame) the grid is always read: nothing says the camera is still.
+    start_tolerance : float
+        How the start is chosen among the candidates (each refined by one readout and fit).
+        0: the one most of the coarsest level's patches agree with. Above 0: the one under
+        which most of that level's textured pixels keep their gray value (in [0, 1]) to within
+        this after warping (:func:`photometric_agreement`): patches that read "no motion"
+        whatever the start (a sharp patch against its motion-blurred counterpart, horizontal
+        streaks of a blurred pan) vote for every start alike there, so they no longer decide.
 
     Returns
     -------
@@ -292,11 +300,13 @@ def estimate_flow(
     cache: dict = {}
     if (prior is not None or search > 0) and levels > 1:
         # Several hypotheses for the start: the prior (a steady pan continues) and no motion (a
-        # shaking camera reverses); the coarsest level keeps the one most patches agree with.
-        # A shake beyond the level's range defeats both: then (when fewer than search_below of
-        # the patches agree, or with no prior to go by) a grid of shifts ``search`` steps of
-        # about the model's range on each side is read too. (A first frame of a fast pan whose
-        # tracked subject reads as "no motion" would otherwise set a wrong prior for the next.)
+        # shaking camera reverses); the coarsest level keeps the best of them after one readout
+        # each: the one most patches agree with, or (start_tolerance) the one under which most
+        # textured pixels keep their gray value. A shake beyond the level's range defeats both:
+        # then (when fewer than search_below of the patches agree, or with no prior to go by) a
+        # grid of shifts ``search`` steps of about the model's range on each side is read too.
+        # (A first frame of a fast pan whose tracked subject reads as "no motion" would
+        # otherwise set a wrong prior for the next.)
         lvl = levels - 1
         factor = 0.5**lvl
         step = max(1.0, rng - 1.0) / factor
@@ -309,12 +319,16 @@ def estimate_flow(
                 if i or j]
         if grid and (search_below >= 1.0 or prior is None):
             basic, grid = basic + grid, []  # read anyway: one batched readout of all of them
-        h_est, support = _best_start(*args, basic, *rest, h_est, texture_scale=texture_scale,
-                                     cache=cache)
+        h_est, support, score = _best_start(*args, basic, *rest, h_est,
+                                            texture_scale=texture_scale,
+                                            tolerance=start_tolerance, cache=cache)
         if grid and support < search_below:
-            h_grid, grid_support = _best_start(*args, grid, *rest, h_est,
-                                               texture_scale=texture_scale, cache=cache)
-            if grid_support > support:
+            h_grid, grid_support, grid_score = _best_start(*args, grid, *rest, h_est,
+                                                           texture_scale=texture_scale,
+                                                           tolerance=start_tolerance,
+                                                           cache=cache)
+            if grid_score > score:
+                h_est = h_grid
                 h_est = h_grid
         started = True  # the start's readout was the coarsest level's first
     else:
@@ -430,10 +444,13 @@ def _level(g1, g2, h_est, model, p, stride, rng, min_texture, max_patches, *,
 
 def _best_start(g1, g2, cands, factor, model, p, stride, rng, min_texture, max_patches,
                 coarse_model, threshold, fallback, *, texture_scale: float = TEXTURE_SCALE,
-                cache: Optional[dict] = None) -> Tuple[np.ndarray, float]:
-    """The candidate start (full-resolution homographies) most coarsest-level patches agree
-    with after refinement, read in ONE batched inference over all candidates, and the fraction
-    of the level's evaluated patches that agree with it (0 when none does).
+                tolerance: float = 0.0, cache: Optional[dict] = None
+                ) -> Tuple[np.ndarray, float, float]:
+    """The best candidate start (full-resolution homographies) after refinement, all of them
+    read in ONE batched inference: ``(motion, support, score)``. ``support`` is the fraction
+    of the level's evaluated patches that agree with the chosen motion (0 when none does);
+    ``score``, what chose it: the support, or with ``tolerance > 0`` the
+    :func:`photometric_agreement` of the level's images under it (-1 when no fit succeeded).
 
     ``cache``: :func:`_level`'s cache for ``g1``, so the level's later readouts reuse the
     first frame's grid, texture, patches and projections cut here (a fresh one if omitted)."""
@@ -443,7 +460,7 @@ def _best_start(g1, g2, cands, factor, model, p, stride, rng, min_texture, max_p
                   cache=cache, read=False, texture_scale=texture_scale)
     centres, tex, pick, x_pick = est0["centres"], est0["texture"], cache["pick"], cache["x"]
     if len(pick) == 0:
-        return fallback, 0.0
+        return fallback, 0.0, -1.0
     scaled = [_scaled(c, factor) for c in cands]
     ys = [_patches_at(_warp_back(g2, h) if not is_identity(h) else g2,
                       centres[pick], p) for h in scaled]
@@ -452,7 +469,8 @@ def _best_start(g1, g2, cands, factor, model, p, stride, rng, min_texture, max_p
         xf = xf.take(np.tile(np.arange(len(pick)), len(cands)))
     d, c, flat = patch_motion(model, np.tile(x_pick, (len(cands), 1)), np.concatenate(ys),
                               max_disp=rng, x_features=xf)
-    best, best_h = -1, fallback
+    best = (fallback, 0.0, -1.0)
+    textured = _textured_pixels(g1) if tolerance > 0 else None
     n, k = len(centres), len(pick)
     for i, h in enumerate(scaled):
         residual = np.zeros((n, 2), np.float32)
@@ -466,9 +484,58 @@ def _best_start(g1, g2, cands, factor, model, p, stride, rng, min_texture, max_p
         dst = apply_homography(h, centres + residual).astype(np.float32)
         est = dict(centres=centres, disp=dst - centres, conf=conf, texture=tex, valid=valid)
         fitted = _fit_level(est, coarse_model, threshold, g1.shape)
-        if fitted.ok and fitted.n_inliers > best:
-            best, best_h = fitted.n_inliers, _scaled(fitted.matrix, 1.0 / factor)
-    return best_h, max(best, 0) / k
+        if not fitted.ok:
+            continue
+        support = fitted.n_inliers / k
+        score = support if textured is None else photometric_agreement(
+            g1, g2, fitted.matrix, tolerance=tolerance, textured=textured)
+        if score > best[2]:
+            best = (_scaled(fitted.matrix, 1.0 / factor), support, score)
+    return best
+
+
+def _textured_pixels(gray: np.ndarray) -> np.ndarray:
+    """``(H, W) bool``: pixels with any gradient (|dx| + |dy| above about 0.0025 per pixel on
+    gray values in [0, 1]); flat pixels agree under every motion and would only dilute the
+    photometric check."""
+    gx = cv2.Sobel(gray, cv2.CV_32F, 1, 0)
+    gy = cv2.Sobel(gray, cv2.CV_32F, 0, 1)
+    return (np.abs(gx) + np.abs(gy)) > np.float32(0.02)  # Sobel is 8x the per-pixel slope
+
+
+def photometric_agreement(g1: np.ndarray, g2: np.ndarray, matrix: np.ndarray, *,
+                          tolerance: float, textured: Optional[np.ndarray] = None) -> float:
+    """Fraction of ``g1``'s textured pixels whose gray value ``g2`` repeats, to within
+    ``tolerance``, at the place ``matrix`` maps them to.
+
+    Parameters
+    ----------
+    g1, g2 : (H, W) float32 gray in [0, 1]
+    matrix : (3, 3) float64
+        Motion from ``g1`` to ``g2`` in these images' pixels.
+    tolerance : float
+        Largest gray-value difference that agrees.
+    textured : (H, W) bool, optional
+        :func:`_textured_pixels` of ``g1``, when already computed.
+
+    Returns
+    -------
+    float
+        In [0, 1]; pixels mapped outside ``g2`` count as disagreeing, so a motion that leaves
+        most of the frame is not preferred for the little it explains.
+    """
+    if textured is None:
+        textured = _textured_pixels(g1)
+    n = int(np.count_nonzero(textured))
+    if n == 0:
+        return 0.0
+    h, w = g1.shape
+    flags = cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP
+    # -1 marks pixels mapped outside g2 (gray values are >= 0): they never agree.
+    warped = cv2.warpPerspective(g2, np.asarray(matrix, np.float64), (w, h), flags=flags,
+                                 borderMode=cv2.BORDER_CONSTANT, borderValue=-1.0)
+    agree = np.abs(warped - g1) <= np.float32(tolerance)
+    return float(np.count_nonzero(agree & textured)) / n
 
 
 def _subgrid(cache: dict, shape: tuple, p: int, stride: int, sub_stride: int,

@@ -483,8 +483,8 @@ class GrbmEngine(MovingCameraEngine):
                  search: int = 1, coarse_iterations: int = 3, finest: int = 0,
                  refine_stride: int = 16, coarser_below: float = 0.5,
                  texture_scale: float = 1e-5, contrast_floor: float = 0.005,
-                 search_below: float = 0.5, coarser_stride: int = 16,
-                 **kwargs: Any) -> None:
+                 search_below: float = 0.9, coarser_stride: int = 16,
+                 start_tolerance: float = 0.015, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         from bgsub.rbm import load_model
 
@@ -507,6 +507,7 @@ class GrbmEngine(MovingCameraEngine):
         self.prior_levels = int(prior_levels)
         self.search = max(0, int(search))
         self.search_below = float(search_below)
+        self.start_tolerance = max(0.0, float(start_tolerance))
         self.coarse_iterations = max(1, int(coarse_iterations))
         self.finest = max(0, int(finest))
         self.refine_stride = int(refine_stride) if refine_stride > 0 else None
@@ -546,7 +547,8 @@ class GrbmEngine(MovingCameraEngine):
                              coarse_iterations=self.coarse_iterations,
                              finest=self.finest if finest is None else finest,
                              refine_stride=self.refine_stride,
-                             search_below=self.search_below)
+                             search_below=self.search_below,
+                             start_tolerance=self.start_tolerance)
 
     def _flow_colour(self, shape: tuple) -> Optional[np.ndarray]:
         flow = getattr(self, "_last_flow", None)
@@ -703,10 +705,14 @@ _GRBM_COMMON = _with_defaults(_COMMON, ransac_threshold=1.0, flow_boost=1.5, flo
                                     "half-size image as stride in the full one"),
         "search": Param(1, "also start the coarsest level from a (2 search + 1)^2 grid of "
                            "shifts (shaking cameras); 0 = prior and identity only"),
-        "search_below": Param(0.5, "with search > 0: read the grid of shifts only when fewer "
+        "search_below": Param(0.9, "with search > 0: read the grid of shifts only when fewer "
                                    "than this fraction of the coarsest patches agree with the "
                                    "better of the previous motion and no motion (1 = always; "
                                    "always on a first frame)"),
+        "start_tolerance": Param(0.015, "choose the coarsest level's start by photometric "
+                                        "agreement: the fraction of textured pixels whose gray "
+                                        "value (0-1) the next frame repeats to within this "
+                                        "(0 = by the number of agreeing patches)"),
         "prior_levels": Param(0, "pyramid levels used when the previous frame's motion "
                                  "predicts this one (0 = always the full pyramid)"),
         "retry_below": Param(0.6, "with prior_levels > 0: when fewer than this fraction of the "

@@ -225,8 +225,8 @@ def test_start_candidates_get_no_support_from_clipped_readings():
     moved = _shift(base, 2, 0, h, w)
     g1, g2 = base.astype(np.float32) / 255, moved.astype(np.float32) / 255
     wrong = np.array([[1.0, 0, -3.0], [0, 1.0, 0], [0, 0, 1]])  # residual 5: read as 3
-    chosen, support = _best_start(g1, g2, [wrong, np.eye(3)], 1.0, ClippingMatcher(), 13, 8, 3,
-                                  0.0, None, "affine", 1.0, np.eye(3))
+    chosen, support, _ = _best_start(g1, g2, [wrong, np.eye(3)], 1.0, ClippingMatcher(), 13, 8, 3,
+                                     0.0, None, "affine", 1.0, np.eye(3))
     assert abs(chosen[0, 2] - 2) < 0.5, chosen
 
 
@@ -293,3 +293,50 @@ class CountingMatcher(ClippingMatcher):
     def patch_motion(self, x_raw, y_raw, *, max_disp):
         self.patches += len(x_raw)
         return super().patch_motion(x_raw, y_raw, max_disp=max_disp)
+
+
+class NoMotionMatcher(OracleMatcher):
+    """Reads "no motion", confidently, whatever the patches show (like the gated RBM on a sharp
+    patch against its motion-blurred counterpart): its readings cannot tell starts apart."""
+
+    def patch_motion(self, x_raw, y_raw, *, max_disp):
+        n = len(x_raw)
+        return np.zeros((n, 2), np.float32), np.ones(n, np.float32), np.zeros(n, bool)
+
+
+def test_photometric_agreement_is_high_only_under_the_true_motion():
+    from bgsub.flowfield import photometric_agreement
+
+    h, w = 96, 128
+    base = _texture(h, w, seed=5)[:h, :w].astype(np.float32) / 255
+    moved = _shift(base, 3, -2, h, w)
+    truth = np.array([[1.0, 0, 3], [0, 1.0, -2], [0, 0, 1]])
+    assert photometric_agreement(base, moved, truth, tolerance=0.015) > 0.9
+    assert photometric_agreement(base, moved, np.eye(3), tolerance=0.015) < 0.3
+
+
+def test_photometric_agreement_counts_pixels_mapped_outside_as_disagreeing():
+    """A motion that maps half the frame outside the other explains only the half it keeps."""
+    from bgsub.flowfield import photometric_agreement
+
+    h, w = 96, 128
+    base = _texture(h, w, seed=6)[:h, :w].astype(np.float32) / 255
+    flat = np.full_like(base, 0.5)
+    half = np.array([[1.0, 0, w / 2], [0, 1.0, 0], [0, 0, 1]])
+    assert photometric_agreement(base, base, np.eye(3), tolerance=0.01) == 1.0
+    assert 0.4 < photometric_agreement(base, base, half, tolerance=1.0) < 0.6
+    assert photometric_agreement(flat, flat, np.eye(3), tolerance=0.01) == 0.0  # no texture
+
+
+@pytest.mark.parametrize("tolerance, start_x", [(0.0, 0.0), (0.015, 6.0)])
+def test_start_tolerance_lets_the_images_decide_what_the_readings_cannot(tolerance, start_x):
+    """Readings that say "no motion" whatever the start agree with every start alike; by patch
+    support the first candidate (no motion) wins the tie, by photometric agreement the start
+    under which the frames match (the previous motion, here the true one)."""
+    h, w = 128, 160
+    base = _texture(h, w, seed=8)[:h, :w]
+    moved = _shift(base, 6, 0, h, w)
+    prior = np.array([[1.0, 0, 6], [0, 1.0, 0], [0, 0, 1]])
+    flow = estimate_flow(base, moved, model=NoMotionMatcher(), levels=2, stride=8,
+                         min_texture=0.0, prior=prior, start_tolerance=tolerance)
+    assert abs(flow.prewarp[0, 2] - start_x) < 0.25, flow.prewarp

@@ -195,6 +195,7 @@ def estimate_flow(
     refine_stride: Optional[int] = None,
     search_below: float = 1.0,
     start_tolerance: float = 0.0,
+    converged: float = 0.0,
 ) -> FlowEstimate:
     """Patch displacements between two frames, coarse to fine.
 
@@ -268,6 +269,13 @@ def estimate_flow(
         this after warping (:func:`photometric_agreement`): patches that read "no motion"
         whatever the start (a sharp patch against its motion-blurred counterpart, horizontal
         streaks of a blurred pan) vote for every start alike there, so they no longer decide.
+    converged : float
+        Stop re-reading the coarsest level (``coarse_iterations``) once a readout moved the
+        fitted motion by less than this many of that level's pixels at its corners
+        (:func:`_corner_shift`): the next re-read would start where this one ended and only
+        refine a settled estimate. The start's readout counts, measured against the candidate
+        it refined (a steady pan that the prior predicts settles there). 0 = always read
+        ``coarse_iterations`` times.
 
     Returns
     -------
@@ -319,20 +327,21 @@ def estimate_flow(
                 if i or j]
         if grid and (search_below >= 1.0 or prior is None):
             basic, grid = basic + grid, []  # read anyway: one batched readout of all of them
-        h_est, support, score = _best_start(*args, basic, *rest, h_est,
-                                            texture_scale=texture_scale,
-                                            tolerance=start_tolerance, cache=cache)
+        h_est, support, score, shift = _best_start(*args, basic, *rest, h_est,
+                                                   texture_scale=texture_scale,
+                                                   tolerance=start_tolerance, cache=cache)
         if grid and support < search_below:
-            h_grid, grid_support, grid_score = _best_start(*args, grid, *rest, h_est,
-                                                           texture_scale=texture_scale,
-                                                           tolerance=start_tolerance,
-                                                           cache=cache)
+            h_grid, _, grid_score, grid_shift = _best_start(*args, grid, *rest, h_est,
+                                                            texture_scale=texture_scale,
+                                                            tolerance=start_tolerance,
+                                                            cache=cache)
             if grid_score > score:
-                h_est = h_grid
-                h_est = h_grid
+                h_est, shift = h_grid, grid_shift
         started = True  # the start's readout was the coarsest level's first
     else:
-        started = False
+        started, shift = False, np.inf
+    # The coarsest level has settled once a readout barely moved its fit: skip its re-reads.
+    settled = shift < converged
     iterations = max(1, int(iterations))
     coarse_iterations = max(1, int(coarse_iterations))
     fine = min(max(0, int(finest)), levels - 1)
@@ -341,7 +350,7 @@ def estimate_flow(
     # The coarsest level starts from a guess and reads coarse_iterations times: a blurred or
     # large motion is under-read at first (e.g. 2.1 px for 4.3 px), and re-reading after each
     # re-warp converges where the model is most reliable. Finer levels then start close and
-    # read once.
+    # read once. A coarsest readout that barely moves the fit ends its re-reads (``converged``).
     plan = [(lvl, cstride) for lvl in range(levels - 1, 0, -1) if lvl > fine
             for _ in range(coarse_iterations - started if lvl == levels - 1 else 1)]
     fine_stride = stride if fine == 0 else max(4, int(round(stride / 2**fine)))
@@ -357,13 +366,18 @@ def estimate_flow(
                max_patches, cache=cache, read=False, texture_scale=texture_scale)
         _subgrid(cache, pyr1[fine].shape, p, fine_stride, pre_stride, min_texture, model)
     for lvl, step in plan:
+        if settled and lvl == levels - 1:
+            continue
         factor = 0.5**lvl
-        est = _level(pyr1[lvl], pyr2[lvl], _scaled(h_est, factor), model, p, step, rng,
+        h_lvl = _scaled(h_est, factor)
+        est = _level(pyr1[lvl], pyr2[lvl], h_lvl, model, p, step, rng,
                      min_texture, max_patches, accept_edge=lvl > fine, cache=cache,
                      texture_scale=texture_scale)
         fitted = _fit_level(est, coarse_model, ransac_threshold, pyr1[lvl].shape)
         if fitted.ok:
             h_est = _scaled(fitted.matrix, 1.0 / factor)
+            if lvl == levels - 1 and converged > 0:
+                settled = _corner_shift(h_lvl, fitted.matrix, pyr1[lvl].shape) < converged
         elif status == "ok":
             status = f"level {lvl}: {fitted.reason}"
 
@@ -445,12 +459,14 @@ def _level(g1, g2, h_est, model, p, stride, rng, min_texture, max_patches, *,
 def _best_start(g1, g2, cands, factor, model, p, stride, rng, min_texture, max_patches,
                 coarse_model, threshold, fallback, *, texture_scale: float = TEXTURE_SCALE,
                 tolerance: float = 0.0, cache: Optional[dict] = None
-                ) -> Tuple[np.ndarray, float, float]:
+                ) -> Tuple[np.ndarray, float, float, float]:
     """The best candidate start (full-resolution homographies) after refinement, all of them
-    read in ONE batched inference: ``(motion, support, score)``. ``support`` is the fraction
-    of the level's evaluated patches that agree with the chosen motion (0 when none does);
-    ``score``, what chose it: the support, or with ``tolerance > 0`` the
-    :func:`photometric_agreement` of the level's images under it (-1 when no fit succeeded).
+    read in ONE batched inference: ``(motion, support, score, shift)``. ``support`` is the
+    fraction of the level's evaluated patches that agree with the chosen motion (0 when none
+    does); ``score``, what chose it: the support, or with ``tolerance > 0`` the
+    :func:`photometric_agreement` of the level's images under it (-1 when no fit succeeded);
+    ``shift``, how far the refinement moved the chosen candidate (:func:`_corner_shift`, this
+    level's pixels; inf when no fit succeeded).
 
     ``cache``: :func:`_level`'s cache for ``g1``, so the level's later readouts reuse the
     first frame's grid, texture, patches and projections cut here (a fresh one if omitted)."""
@@ -460,7 +476,7 @@ def _best_start(g1, g2, cands, factor, model, p, stride, rng, min_texture, max_p
                   cache=cache, read=False, texture_scale=texture_scale)
     centres, tex, pick, x_pick = est0["centres"], est0["texture"], cache["pick"], cache["x"]
     if len(pick) == 0:
-        return fallback, 0.0, -1.0
+        return fallback, 0.0, -1.0, np.inf
     scaled = [_scaled(c, factor) for c in cands]
     ys = [_patches_at(_warp_back(g2, h) if not is_identity(h) else g2,
                       centres[pick], p) for h in scaled]
@@ -469,7 +485,7 @@ def _best_start(g1, g2, cands, factor, model, p, stride, rng, min_texture, max_p
         xf = xf.take(np.tile(np.arange(len(pick)), len(cands)))
     d, c, flat = patch_motion(model, np.tile(x_pick, (len(cands), 1)), np.concatenate(ys),
                               max_disp=rng, x_features=xf)
-    best = (fallback, 0.0, -1.0)
+    best = (fallback, 0.0, -1.0, np.inf)
     textured = _textured_pixels(g1) if tolerance > 0 else None
     n, k = len(centres), len(pick)
     for i, h in enumerate(scaled):
@@ -490,8 +506,30 @@ def _best_start(g1, g2, cands, factor, model, p, stride, rng, min_texture, max_p
         score = support if textured is None else photometric_agreement(
             g1, g2, fitted.matrix, tolerance=tolerance, textured=textured)
         if score > best[2]:
-            best = (_scaled(fitted.matrix, 1.0 / factor), support, score)
+            best = (_scaled(fitted.matrix, 1.0 / factor), support, score,
+                    _corner_shift(h, fitted.matrix, g1.shape))
     return best
+
+
+def _corner_shift(h_a: np.ndarray, h_b: np.ndarray, shape: tuple) -> float:
+    """How far apart two motions put an image's corners: the largest distance (pixels)
+    between ``h_a`` and ``h_b`` applied to the four corners of an image of ``shape``.
+
+    Parameters
+    ----------
+    h_a, h_b : (3, 3) float64 homographies in that image's pixels
+    shape : (H, W, ...)
+
+    Returns
+    -------
+    float
+        0 for the same motion; the corners bound the difference anywhere inside for affine
+        motions (and nearly so for the mild homographies between frames).
+    """
+    h, w = shape[:2]
+    corners = np.array([[0, 0], [w - 1, 0], [0, h - 1], [w - 1, h - 1]], np.float64)
+    diff = apply_homography(h_a, corners) - apply_homography(h_b, corners)
+    return float(np.sqrt(np.max(np.sum(diff**2, axis=1))))
 
 
 def _textured_pixels(gray: np.ndarray) -> np.ndarray:

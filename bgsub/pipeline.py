@@ -484,7 +484,8 @@ class GrbmEngine(MovingCameraEngine):
                  refine_stride: int = 16, coarser_below: float = 0.5,
                  texture_scale: float = 1e-5, contrast_floor: float = 0.005,
                  search_below: float = 0.9, coarser_stride: int = 16,
-                 start_tolerance: float = 0.015, **kwargs: Any) -> None:
+                 start_tolerance: float = 0.015, converged: float = 0.1,
+                 **kwargs: Any) -> None:
         super().__init__(**kwargs)
         from bgsub.rbm import load_model
 
@@ -509,6 +510,7 @@ class GrbmEngine(MovingCameraEngine):
         self.search_below = float(search_below)
         self.start_tolerance = max(0.0, float(start_tolerance))
         self.coarse_iterations = max(1, int(coarse_iterations))
+        self.converged = max(0.0, float(converged))
         self.finest = max(0, int(finest))
         self.refine_stride = int(refine_stride) if refine_stride > 0 else None
         self.coarser_below = float(coarser_below)
@@ -548,7 +550,8 @@ class GrbmEngine(MovingCameraEngine):
                              finest=self.finest if finest is None else finest,
                              refine_stride=self.refine_stride,
                              search_below=self.search_below,
-                             start_tolerance=self.start_tolerance)
+                             start_tolerance=self.start_tolerance,
+                             converged=self.converged)
 
     def _flow_colour(self, shape: tuple) -> Optional[np.ndarray]:
         flow = getattr(self, "_last_flow", None)
@@ -689,6 +692,11 @@ _GRBM_COMMON = _with_defaults(_COMMON, ransac_threshold=1.0, flow_boost=1.5, flo
                                    "accuracy"),
         "coarse_iterations": Param(3, "readouts at the coarsest pyramid level, each re-warped "
                                       "by the last fit (finer levels start close and read once)"),
+        "converged": Param(0.1, "stop re-reading the coarsest level once a readout moved its "
+                                "fitted motion by less than this many of that level's pixels "
+                                "at the corners: a steady pan the previous motion predicts "
+                                "reads it once, not coarse_iterations times (0 = always "
+                                "coarse_iterations readouts)"),
         "texture_scale": Param(1e-5, "structure-tensor eigenvalue (gray in [0, 1]) at which a "
                                      "patch's texture weight is 0.5: small = every textured "
                                      "patch counts alike, only near-flat and edge-only ones are "

@@ -187,11 +187,13 @@ class UnderReadingMatcher(OracleMatcher):
         return (np.sign(disp) * np.ceil(np.abs(disp) / 2)).astype(np.float32), conf, flat
 
 
+@pytest.mark.parametrize("converged", [0.0, 0.25])
 @pytest.mark.parametrize("with_prior", [False, True])
-def test_coarsest_level_is_read_until_it_converges(with_prior):
+def test_coarsest_level_is_read_until_it_converges(with_prior, converged):
     """An under-reading model leaves the pre-warp short after one readout of the coarsest
     level; re-reading it after each re-warp converges (with a prior too: the start's readout
-    counts as the first)."""
+    counts as the first). Every readout moves the fit by a pixel or more, so stopping at
+    convergence (``converged``) must not cut the re-reads short."""
     h, w = 192, 256
     base = _texture(h, w, seed=6)[:h, :w]
     moved = _shift(base, 6, 0, h, w)  # 3 px at the coarser of 2 levels
@@ -200,7 +202,7 @@ def test_coarsest_level_is_read_until_it_converges(with_prior):
     def prewarp_x(coarse_iterations):
         flow = estimate_flow(base, moved, model=UnderReadingMatcher(), levels=2, stride=8,
                              iterations=1, coarse_iterations=coarse_iterations, prior=prior,
-                             min_texture=0.0)
+                             min_texture=0.0, converged=converged)
         return flow.prewarp[0, 2]
 
     assert abs(prewarp_x(1) - 6) > 1.5  # 3 read as 2: 4 px
@@ -225,8 +227,8 @@ def test_start_candidates_get_no_support_from_clipped_readings():
     moved = _shift(base, 2, 0, h, w)
     g1, g2 = base.astype(np.float32) / 255, moved.astype(np.float32) / 255
     wrong = np.array([[1.0, 0, -3.0], [0, 1.0, 0], [0, 0, 1]])  # residual 5: read as 3
-    chosen, support, _ = _best_start(g1, g2, [wrong, np.eye(3)], 1.0, ClippingMatcher(), 13, 8, 3,
-                                     0.0, None, "affine", 1.0, np.eye(3))
+    chosen, support, _, _ = _best_start(g1, g2, [wrong, np.eye(3)], 1.0, ClippingMatcher(), 13,
+                                        8, 3, 0.0, None, "affine", 1.0, np.eye(3))
     assert abs(chosen[0, 2] - 2) < 0.5, chosen
 
 
@@ -340,3 +342,29 @@ def test_start_tolerance_lets_the_images_decide_what_the_readings_cannot(toleran
     flow = estimate_flow(base, moved, model=NoMotionMatcher(), levels=2, stride=8,
                          min_texture=0.0, prior=prior, start_tolerance=tolerance)
     assert abs(flow.prewarp[0, 2] - start_x) < 0.25, flow.prewarp
+
+
+@pytest.mark.parametrize("prior_x, skipped", [(6.0, 2), (None, 1)])
+def test_a_converged_coarsest_level_skips_its_re_reads(prior_x, skipped):
+    """A start that already matches the motion (the prior of a steady pan) reads no residual:
+    the coarsest level has converged and its two re-reads are skipped. From no motion, the
+    first readout finds it (3 px at level 1) and the second confirms it: only the third is
+    skipped. Either way the motion reached is the one of all the re-reads."""
+    from bgsub.tiling import patch_grid
+
+    h, w = 192, 256
+    base = _texture(h, w, seed=6)[:h, :w]
+    moved = _shift(base, 6, 0, h, w)
+    prior = None if prior_x is None else np.array([[1.0, 0, prior_x], [0, 1, 0], [0, 0, 1]])
+    kw = dict(levels=2, stride=8, iterations=1, coarse_iterations=3, prior=prior,
+              min_texture=0.0)
+    patches, prewarps = [], []
+    for converged in (0.0, 0.1):
+        model = CountingMatcher()
+        flow = estimate_flow(base, moved, model=model, converged=converged, **kw)
+        patches.append(model.patches)
+        prewarps.append(flow.prewarp)
+    n_coarsest = len(patch_grid((h // 2, w // 2), patch_size=13, stride=8)[0])
+    assert patches[0] - patches[1] == skipped * n_coarsest
+    np.testing.assert_allclose(prewarps[1], prewarps[0], atol=1e-4)
+    assert abs(prewarps[1][0, 2] - 6) < 0.05

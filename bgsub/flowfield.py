@@ -24,6 +24,7 @@ from numpy.lib.stride_tricks import as_strided
 from bgsub.global_motion import (
     GlobalMotion,
     apply_homography,
+    corner_distances,
     fit_global_motion,
     is_affine,
     is_identity,
@@ -512,24 +513,11 @@ def _best_start(g1, g2, cands, factor, model, p, stride, rng, min_texture, max_p
 
 
 def _corner_shift(h_a: np.ndarray, h_b: np.ndarray, shape: tuple) -> float:
-    """How far apart two motions put an image's corners: the largest distance (pixels)
-    between ``h_a`` and ``h_b`` applied to the four corners of an image of ``shape``.
-
-    Parameters
-    ----------
-    h_a, h_b : (3, 3) float64 homographies in that image's pixels
-    shape : (H, W, ...)
-
-    Returns
-    -------
-    float
-        0 for the same motion; the corners bound the difference anywhere inside for affine
-        motions (and nearly so for the mild homographies between frames).
-    """
-    h, w = shape[:2]
-    corners = np.array([[0, 0], [w - 1, 0], [0, h - 1], [w - 1, h - 1]], np.float64)
-    diff = apply_homography(h_a, corners) - apply_homography(h_b, corners)
-    return float(np.sqrt(np.max(np.sum(diff**2, axis=1))))
+    """How far apart two motions put an image's corners: the largest distance (pixels) over
+    the four corners of an image of ``shape`` ``(H, W, ...)``, for ``(3, 3)`` homographies in
+    its pixels. The corners bound the difference anywhere inside for affine motions (and
+    nearly so for the mild homographies between frames)."""
+    return float(np.max(corner_distances(h_a, h_b, width=shape[1], height=shape[0])))
 
 
 def _textured_pixels(gray: np.ndarray) -> np.ndarray:

@@ -94,11 +94,17 @@ def is_affine(matrix: np.ndarray) -> bool:
     return abs(float(m[2, 0])) <= 1e-12 and abs(float(m[2, 1])) <= 1e-12 and float(m[2, 2]) != 0.0
 
 
+def corner_distances(a: np.ndarray, b: np.ndarray, *, width: int, height: int) -> np.ndarray:
+    """``(4,) float64``: distance in pixels between where the homographies ``a`` and ``b`` put
+    each corner of a ``width`` x ``height`` frame."""
+    corners = np.array([[0, 0], [width - 1, 0], [0, height - 1], [width - 1, height - 1]], float)
+    diff = apply_homography(a, corners) - apply_homography(b, corners)
+    return np.hypot(diff[:, 0], diff[:, 1])
+
+
 def corner_error(estimate: np.ndarray, truth: np.ndarray, *, width: int, height: int) -> float:
     """Mean distance in pixels between the frame corners mapped by two homographies."""
-    corners = np.array([[0, 0], [width - 1, 0], [0, height - 1], [width - 1, height - 1]], float)
-    diff = apply_homography(estimate, corners) - apply_homography(truth, corners)
-    return float(np.mean(np.hypot(diff[:, 0], diff[:, 1])))
+    return float(np.mean(corner_distances(estimate, truth, width=width, height=height)))
 
 
 def _select(

@@ -487,7 +487,12 @@ def _best_start(g1, g2, cands, factor, model, p, stride, rng, min_texture, max_p
     d, c, flat = patch_motion(model, np.tile(x_pick, (len(cands), 1)), np.concatenate(ys),
                               max_disp=rng, x_features=xf)
     best = (fallback, 0.0, -1.0, np.inf)
-    textured = _textured_pixels(g1) if tolerance > 0 else None
+    textured = None
+    if tolerance > 0:
+        # Cached: a frame that reads the grid of starts scores two batches on the same level.
+        textured = cache.get(("textured", g1.shape))
+        if textured is None:
+            textured = cache[("textured", g1.shape)] = _textured_pixels(g1)
     n, k = len(centres), len(pick)
     for i, h in enumerate(scaled):
         residual = np.zeros((n, 2), np.float32)

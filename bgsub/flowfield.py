@@ -197,6 +197,7 @@ def estimate_flow(
     search_below: float = 1.0,
     start_tolerance: float = 0.0,
     converged: float = 0.0,
+    start_model: str = "translation",
 ) -> FlowEstimate:
     """Patch displacements between two frames, coarse to fine.
 
@@ -270,6 +271,11 @@ def estimate_flow(
         this after warping (:func:`photometric_agreement`): patches that read "no motion"
         whatever the start (a sharp patch against its motion-blurred counterpart, horizontal
         streaks of a blurred pan) vote for every start alike there, so they no longer decide.
+    start_model : str
+        Motion model fitted to each start candidate's readout. A translation: the start only
+        has to bring the coarsest level within the model's range, and that level's few
+        patches (15 on a 320x240 frame) fit a similarity's zoom to their noise; the re-reads
+        that follow fit ``coarse_model`` to readings near zero, where they are reliable.
     converged : float
         Stop re-reading the coarsest level (``coarse_iterations``) once a readout moved the
         fitted motion by less than this many of that level's pixels at its corners
@@ -320,7 +326,7 @@ def estimate_flow(
         factor = 0.5**lvl
         step = max(1.0, rng - 1.0) / factor
         args = (pyr1[lvl], pyr2[lvl])
-        rest = (factor, model, p, cstride, rng, min_texture, max_patches, coarse_model,
+        rest = (factor, model, p, cstride, rng, min_texture, max_patches, start_model,
                 ransac_threshold)
         basic = [np.eye(3)] + ([h_est] if prior is not None else [])
         grid = [np.array([[1.0, 0, i * step], [0, 1.0, j * step], [0, 0, 1]])
@@ -458,11 +464,12 @@ def _level(g1, g2, h_est, model, p, stride, rng, min_texture, max_patches, *,
 
 
 def _best_start(g1, g2, cands, factor, model, p, stride, rng, min_texture, max_patches,
-                coarse_model, threshold, fallback, *, texture_scale: float = TEXTURE_SCALE,
+                fit_model, threshold, fallback, *, texture_scale: float = TEXTURE_SCALE,
                 tolerance: float = 0.0, cache: Optional[dict] = None
                 ) -> Tuple[np.ndarray, float, float, float]:
     """The best candidate start (full-resolution homographies) after refinement, all of them
-    read in ONE batched inference: ``(motion, support, score, shift)``. ``support`` is the
+    read in ONE batched inference: ``(motion, support, score, shift)``. Each candidate is
+    refined by a ``fit_model`` motion fitted to its readout. ``support`` is the
     fraction of the level's evaluated patches that agree with the chosen motion (0 when none
     does); ``score``, what chose it: the support, or with ``tolerance > 0`` the
     :func:`photometric_agreement` of the level's images under it (-1 when no fit succeeded);
@@ -505,7 +512,7 @@ def _best_start(g1, g2, cands, factor, model, p, stride, rng, min_texture, max_p
         residual[pick], conf[pick], valid[pick] = d[sl], c[sl], ~flat[sl] & inside
         dst = apply_homography(h, centres + residual).astype(np.float32)
         est = dict(centres=centres, disp=dst - centres, conf=conf, texture=tex, valid=valid)
-        fitted = _fit_level(est, coarse_model, threshold, g1.shape)
+        fitted = _fit_level(est, fit_model, threshold, g1.shape)
         if not fitted.ok:
             continue
         support = fitted.n_inliers / k

@@ -485,7 +485,7 @@ class GrbmEngine(MovingCameraEngine):
                  texture_scale: float = 1e-5, contrast_floor: float = 0.005,
                  search_below: float = 0.9, coarser_stride: int = 16,
                  start_tolerance: float = 0.015, converged: float = 0.1,
-                 **kwargs: Any) -> None:
+                 start_model: str = "translation", **kwargs: Any) -> None:
         super().__init__(**kwargs)
         from bgsub.rbm import load_model
 
@@ -509,6 +509,7 @@ class GrbmEngine(MovingCameraEngine):
         self.search = max(0, int(search))
         self.search_below = float(search_below)
         self.start_tolerance = max(0.0, float(start_tolerance))
+        self.start_model = str(start_model)
         self.coarse_iterations = max(1, int(coarse_iterations))
         self.converged = max(0.0, float(converged))
         self.finest = max(0, int(finest))
@@ -551,6 +552,7 @@ class GrbmEngine(MovingCameraEngine):
                              refine_stride=self.refine_stride,
                              search_below=self.search_below,
                              start_tolerance=self.start_tolerance,
+                             start_model=self.start_model,
                              converged=self.converged)
 
     def _flow_colour(self, shape: tuple) -> Optional[np.ndarray]:
@@ -721,6 +723,11 @@ _GRBM_COMMON = _with_defaults(_COMMON, ransac_threshold=1.0, flow_boost=1.5, flo
                                         "agreement: the fraction of textured pixels whose gray "
                                         "value (0-1) the next frame repeats to within this "
                                         "(0 = by the number of agreeing patches)"),
+        "start_model": Param("translation", "motion model fitted to each start's readout at the "
+                                            "coarsest level (its few patches fit a richer "
+                                            "model's zoom to noise; the re-reads that follow "
+                                            "fit the full model)",
+                             choices=("translation", "similarity", "affine", "homography")),
         "prior_levels": Param(0, "pyramid levels used when the previous frame's motion "
                                  "predicts this one (0 = always the full pyramid)"),
         "retry_below": Param(0.6, "with prior_levels > 0: when fewer than this fraction of the "

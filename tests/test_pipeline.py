@@ -249,6 +249,25 @@ def test_grbm_reads_a_low_contrast_pan_with_the_default_contrast_floor():
     assert not found[0].ok or abs(found[0].matrix[0, 2] + 1.5) > 0.5
 
 
+@pytest.mark.parametrize("zoom, angle, shift", [(1.05, 0.0, 0.0), (0.95, 3.0, 4.0)])
+def test_grbm_finds_a_zoom_and_rotation_from_a_translation_start(zoom, angle, shift):
+    """The start is refined by a translation only (``start_model``); the re-reads after it fit
+    the full model, so a first frame pair (no previous motion) that zooms by 5 % and rotates
+    by 3 degrees is still recovered to a fraction of a pixel at the corners."""
+    from bgsub.global_motion import corner_distances
+    from test_flowfield import _texture
+
+    h, w = 240, 320
+    first = _texture(h, w, seed=5)[:h, :w].astype(np.uint8)
+    m = cv2.getRotationMatrix2D((w / 2, h / 2), angle, zoom)
+    m[0, 2] += shift
+    truth = np.vstack([m, [0.0, 0.0, 1.0]])
+    second = cv2.warpPerspective(first, truth, (w, h), borderMode=cv2.BORDER_REFLECT)
+    found = create_engine("grbm")._motion(first, second, None).motion
+    assert found.ok
+    assert np.median(corner_distances(found.matrix, truth, width=w, height=h)) < 0.5
+
+
 def test_coarser_rereads_use_the_coarser_stride(monkeypatch):
     """The fallback readouts one and two levels coarser read on ``coarser_stride``'s grid; the
     first readout on the engine's ``stride``."""

@@ -218,8 +218,8 @@ def estimate_flow(
         Patch grid step at the coarser levels (default ``stride``, at least 4).
     prior : (3, 3) float64, optional
         A guess of the camera motion (e.g. the previous frame's). With more than one level,
-        the coarsest level is read twice, pre-warped by the prior and by the identity, and the
-        start more patches agree with is kept.
+        the coarsest level is read pre-warped by the prior and by the identity (one batch), and
+        the better start is kept (see ``start_tolerance`` and ``start_model``).
     coarse_model : str
         Motion model fitted at the coarser levels to pre-warp the next (see
         :func:`bgsub.global_motion.fit_global_motion`).

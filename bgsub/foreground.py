@@ -14,7 +14,8 @@ Two pieces of evidence, fused into one clean mask:
   disagree with the motion the camera predicts for their position, splatted to a per-pixel map
   weighted by their reliability.
 
-:func:`fuse_masks` combines them and thresholds, and cleans the mask (morphology, removal of blobs below ``min_area`` pixels).
+:func:`fuse_masks` combines them and thresholds, and cleans the mask (morphology, removal of blobs
+below ``min_area`` pixels, filling of the holes they enclose).
 The fused score is ``bg_score`` times a gain that rises above 1 where local motion violates the
 camera's and falls below 1 where it confirms it.
 """
@@ -334,8 +335,9 @@ def flow_violation_map(
     return np.ascontiguousarray(up[:h, :w])
 
 
-def clean_mask(mask: np.ndarray, *, min_area: int = 30, close: int = 5) -> np.ndarray:
-    """Tidy a binary mask: 3x3 opening, ``close`` x ``close`` closing, drop small blobs.
+def clean_mask(mask: np.ndarray, *, min_area: int = 30, close: int = 5,
+               fill_holes: int = 0) -> np.ndarray:
+    """Tidy a binary mask: 3x3 opening, ``close`` x ``close`` closing, drop small blobs, fill holes.
 
     Parameters
     ----------
@@ -344,6 +346,11 @@ def clean_mask(mask: np.ndarray, *, min_area: int = 30, close: int = 5) -> np.nd
         Connected components (8-connected) smaller than this many pixels are removed.
     close : int
         Side of the closing kernel (0 or 1 = no closing).
+    fill_holes : int
+        Background regions (4-connected) enclosed by foreground and not touching the frame's
+        border, of at most this many pixels, become foreground (0 = none). The inside of a
+        uniformly coloured object matches the background it covered, once the camera moves
+        the model by less than the object's size, so only its outline differs.
 
     Returns
     -------
@@ -361,8 +368,30 @@ def clean_mask(mask: np.ndarray, *, min_area: int = 30, close: int = 5) -> np.nd
         small[0] = False
         if small.any():
             m[small[labels]] = 0
+    if fill_holes > 0 and cv2.countNonZero(m):
+        _fill_holes(m, fill_holes)
     m *= 255
     return m
+
+
+def _fill_holes(m: np.ndarray, max_area: int) -> None:
+    """Set to 1, in place, the 0-regions of the 0/1 ``m`` ((H, W) uint8) that do not reach the
+    border (4-connected), each of at most ``max_area`` pixels."""
+    # Flood the background from a one-pixel frame around the image: what stays 0 is enclosed.
+    # (Three times cheaper than labelling the background, which only the rare case of more
+    # enclosed pixels than max_area in total needs.)
+    flooded = cv2.copyMakeBorder(m, 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=0)
+    cv2.floodFill(flooded, None, (0, 0), 1)
+    holes = 1 - flooded[1:-1, 1:-1]
+    total = cv2.countNonZero(holes)
+    if total == 0:
+        return
+    if total > max_area:
+        _, labels, stats, _ = cv2.connectedComponentsWithStats(holes, connectivity=4)
+        small = stats[:, cv2.CC_STAT_AREA] <= max_area
+        small[0] = False  # label 0: everything that is not a hole
+        holes = small[labels].view(np.uint8)
+    np.bitwise_or(m, holes, out=m)
 
 
 _KERNELS: dict = {}
@@ -385,6 +414,7 @@ def fuse_masks(
     threshold: float = 1.0,
     min_area: int = 30,
     close: int = 5,
+    fill_holes: int = 0,
 ) -> np.ndarray:
     """Fuse background difference and flow violation into a clean 0/255 mask.
 
@@ -403,7 +433,7 @@ def fuse_masks(
         model only.
     threshold : float
         Foreground where the fused score exceeds this.
-    min_area, close : see :func:`clean_mask`.
+    min_area, close, fill_holes : see :func:`clean_mask`.
 
     Returns
     -------
@@ -419,4 +449,4 @@ def fuse_masks(
         np.maximum(gain, np.float32(0.0), out=gain)
         gain *= bg_score
         score = gain
-    return clean_mask(score > threshold, min_area=min_area, close=close)
+    return clean_mask(score > threshold, min_area=min_area, close=close, fill_holes=fill_holes)

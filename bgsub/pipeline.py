@@ -182,7 +182,8 @@ class MovingCameraEngine(Engine):
     flow_boost, flow_damp, violation_threshold, violation_noise : flow-violation fusion
         (:func:`fuse_masks`, :func:`flow_violation_map`; ``violation_noise`` is its
         ``noise_scale``).
-    threshold, min_area, close : the final decision and clean-up.
+    threshold, min_area, close, fill_holes : the final decision and clean-up
+        (:func:`clean_mask`).
     min_contrast : float
         Frames whose gray standard deviation is below this are "blank or textureless".
     scene_cut, cut_support : float
@@ -222,6 +223,7 @@ class MovingCameraEngine(Engine):
         cut_support: float = 0.35,
         threads: int = 1,
         violation_noise: float = 0.0,
+        fill_holes: int = 5000,
     ) -> None:
         self.work_width = int(work_width)
         self.motion_model = motion_model
@@ -234,6 +236,7 @@ class MovingCameraEngine(Engine):
         self.threshold = float(threshold)
         self.min_area = int(min_area)
         self.close = int(close)
+        self.fill_holes = int(fill_holes)
         self.min_contrast = float(min_contrast)
         self.scene_cut = float(scene_cut)
         self.heal_below = float(heal_below)
@@ -347,7 +350,8 @@ class MovingCameraEngine(Engine):
                                            threshold=self.violation_threshold,
                                            noise_scale=self.violation_noise)
         mask = fuse_masks(score, violation, flow_boost=self.flow_boost, flow_damp=self.flow_damp,
-                          threshold=self.threshold, min_area=self.min_area, close=self.close)
+                          threshold=self.threshold, min_area=self.min_area, close=self.close,
+                          fill_holes=self.fill_holes)
         learn_slowly = mask > 0
         if violation is not None:
             # Where the local motion confidently agrees with the camera's, a background
@@ -634,6 +638,8 @@ _COMMON = {
                                   "vectors' disagreement, if more (0 = fixed threshold)"),
     "min_area": Param(30, "blobs smaller than this (working-size pixels) are dropped"),
     "close": Param(9, "morphological closing size (0 = none)"),
+    "fill_holes": Param(5000, "holes enclosed by a foreground blob, up to this many "
+                              "working-size pixels, are filled (0 = none)"),
     "threshold": Param(1.0, "foreground where the fused score exceeds this (lower = more "
                             "foreground)"),
     "threads": Param(1, "BLAS and OpenCV worker threads while a frame is processed (0 = as "

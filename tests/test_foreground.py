@@ -137,3 +137,35 @@ def test_violation_threshold_scales_with_the_vectors_noise():
     assert fixed[30, 30] > 0.3
     assert scaled[30, 30] < 0.1
     assert scaled[88, 88] > 0.9
+
+
+def test_clean_mask_fills_a_hole_enclosed_by_a_blob():
+    m = np.zeros((60, 60), np.uint8)
+    m[10:50, 10:50] = 255
+    m[20:40, 20:40] = 0  # a 400 px hole
+    out = clean_mask(m, min_area=1, close=0, fill_holes=500)
+    assert out[10:50, 10:50].all() and not out[:10].any()
+
+
+def test_clean_mask_keeps_holes_larger_than_the_limit():
+    m = np.zeros((60, 60), np.uint8)
+    m[10:50, 10:50] = 255
+    m[20:40, 20:40] = 0
+    out = clean_mask(m, min_area=1, close=0, fill_holes=399)
+    assert not out[20:40, 20:40].any()
+
+
+def test_clean_mask_does_not_fill_background_open_to_the_border():
+    m = np.zeros((60, 60), np.uint8)
+    m[10:50, 10:50] = 255
+    m[20:40, 20:60] = 0  # a notch reaching the right edge, not a hole
+    out = clean_mask(m, min_area=1, close=0, fill_holes=10_000)
+    assert not out[20:40, 20:60].any() and not out[:10].any()
+
+
+def test_fusion_fills_the_inside_of_an_object_seen_only_at_its_outline():
+    score = np.zeros((60, 60), np.float32)
+    score[10:50, 10:50] = 2.0
+    score[16:44, 16:44] = 0.0  # a flat interior that matches the background it covered
+    mask = fuse_masks(score, min_area=1, close=0, fill_holes=5000)
+    assert mask[10:50, 10:50].all() and not mask[:10].any()

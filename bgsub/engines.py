@@ -68,11 +68,18 @@ class Engine(ABC):
 
 @dataclass(frozen=True)
 class Param:
-    """One tunable parameter of an engine: its default (which also fixes its type) and meaning."""
+    """One tunable parameter of an engine: its default (which also fixes its type) and meaning.
+
+    ``choices`` lists the allowed values of a text parameter; ``low`` / ``high`` bound a number
+    (inclusive) and ``above`` bounds it from below, exclusive (a rate that must be positive).
+    """
 
     default: Any
     help: str
     choices: Optional[tuple] = None
+    low: Optional[float] = None
+    high: Optional[float] = None
+    above: Optional[float] = None
 
     def parse(self, name: str, text: str) -> Any:
         """Convert the command-line text ``text`` to this parameter's type."""
@@ -95,9 +102,19 @@ class Param:
         return value
 
     def check(self, name: str, value: Any) -> None:
+        """Raise :class:`InputError` when ``value`` is outside ``choices`` or the bounds."""
         if self.choices is not None and value not in self.choices:
             allowed = ", ".join(map(str, self.choices))
             raise InputError(f"parameter {name!r} must be one of {allowed}, not {value!r}")
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            return
+        if self.low is not None and not value >= self.low:
+            raise InputError(f"parameter {name!r} must be at least {self.low:g}, not {value!r}")
+        if self.high is not None and not value <= self.high:
+            raise InputError(f"parameter {name!r} must be at most {self.high:g}, not {value!r}")
+        if self.above is not None and not value > self.above:
+            raise InputError(f"parameter {name!r} must be greater than {self.above:g}, "
+                             f"not {value!r}")
 
 
 @dataclass(frozen=True)

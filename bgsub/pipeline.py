@@ -617,36 +617,38 @@ class GrbmEngine(MovingCameraEngine):
 
 _COMMON = {
     "work_width": Param(320, "process frames resized to this width (0 = input size); the mask "
-                             "is returned at the input size"),
+                             "is returned at the input size", low=0),
     "motion_model": Param("homography", "camera motion model fitted by RANSAC",
                           choices=("homography", "affine", "similarity", "translation")),
-    "ransac_threshold": Param(1.5, "RANSAC inlier distance in working-size pixels"),
-    "alpha": Param(0.1, "background learning rate of pixels with a long history"),
-    "fg_alpha": Param(0.01, "learning rate of pixels called foreground (lets ghosts fade)"),
-    "k_sigma": Param(2.0, "foreground beyond this many background standard deviations ..."),
-    "min_diff": Param(10.0, "... and this many gray levels (0-255)"),
+    "ransac_threshold": Param(1.5, "RANSAC inlier distance in working-size pixels", above=0),
+    "alpha": Param(0.1, "background learning rate of pixels with a long history", low=0, high=1),
+    "fg_alpha": Param(0.01, "learning rate of pixels called foreground (lets ghosts fade)",
+                      low=0, high=1),
+    "k_sigma": Param(2.0, "foreground beyond this many background standard deviations ...", low=0),
+    "min_diff": Param(10.0, "... and this many gray levels (0-255)", low=0),
     "envelope": Param(1, "a pixel is compared with the background's min/max over this "
-                         "neighbourhood (3 tolerates a 1-px misregistration)"),
-    "min_age": Param(1, "frames of history a pixel needs before it can be foreground"),
+                         "neighbourhood (3 tolerates a 1-px misregistration)", low=1),
+    "min_age": Param(1, "frames of history a pixel needs before it can be foreground", low=0),
     "flow_boost": Param(0.8, "where local motion violates the camera's, the background "
-                             "difference is multiplied by up to 1 + this"),
+                             "difference is multiplied by up to 1 + this", low=0),
     "flow_damp": Param(0.8, "where local motion agrees with the camera's, it is multiplied by "
-                            "down to 1 - this (0 and flow_boost 0 = background model only)"),
+                            "down to 1 - this (0 and flow_boost 0 = background model only)",
+                            low=0, high=1),
     "violation_threshold": Param(1.5, "disagreement with the camera motion (px) that counts as "
-                                      "a violation"),
+                                      "a violation", low=0),
     "violation_noise": Param(0.0, "... or this many robust standard deviations of the local "
-                                  "vectors' disagreement, if more (0 = fixed threshold)"),
-    "min_area": Param(30, "blobs smaller than this (working-size pixels) are dropped"),
-    "close": Param(9, "morphological closing size (0 = none)"),
+                                  "vectors' disagreement, if more (0 = fixed threshold)", low=0),
+    "min_area": Param(30, "blobs smaller than this (working-size pixels) are dropped", low=0),
+    "close": Param(9, "morphological closing size (0 = none)", low=0),
     "fill_holes": Param(5000, "holes enclosed by a foreground blob, up to this many "
-                              "working-size pixels, are filled (0 = none)"),
+                              "working-size pixels, are filled (0 = none)", low=0),
     "threshold": Param(1.0, "foreground where the fused score exceeds this (lower = more "
-                            "foreground)"),
+                            "foreground)", low=0),
     "threads": Param(1, "BLAS and OpenCV worker threads while a frame is processed (0 = as "
-                        "configured; more threads are slower for these small frames)"),
+                        "configured; more threads are slower for these small frames)", low=0),
     "heal_below": Param(0.25, "background differences where the local motion agrees with the "
                               "camera (violation below this) are learnt at the normal rate "
-                              "(ghost healing)"),
+                              "(ghost healing)", low=0),
 }
 
 
@@ -659,11 +661,10 @@ def _split(kwargs: dict) -> dict:
 
 
 def _with_defaults(common: dict, **overrides: Any) -> dict:
-    """``common`` with some defaults replaced (same help text)."""
+    """``common`` with some defaults replaced (same help text and bounds)."""
     out = dict(common)
     for name, value in overrides.items():
-        p = out[name]
-        out[name] = Param(value, p.help, p.choices)
+        out[name] = dataclasses.replace(out[name], default=value)
     return out
 
 
@@ -686,59 +687,63 @@ _GRBM_COMMON = _with_defaults(_COMMON, ransac_threshold=1.0, flow_boost=1.5, flo
     "compensated background model (the paper's method)",
     params={
         "model": Param("natural", "gated RBM: a shipped model name or an .npz path"),
-        "stride": Param(8, "patch grid step in working-size pixels"),
-        "levels": Param(0, "pyramid levels (0 = enough for max_motion)"),
-        "max_motion": Param(32.0, "largest camera motion per frame to plan for (working px)"),
-        "min_texture": Param(0.02, "patches with less texture (0-1) are not evaluated"),
-        "max_patches": Param(0, "evaluate at most this many patches per level (0 = all)"),
-        "iterations": Param(2, "readouts at the finest level, each re-warped by the last fit"),
+        "stride": Param(8, "patch grid step in working-size pixels", low=1),
+        "levels": Param(0, "pyramid levels (0 = enough for max_motion)", low=0),
+        "max_motion": Param(32.0, "largest camera motion per frame to plan for (working px)",
+                            low=0),
+        "min_texture": Param(0.02, "patches with less texture (0-1) are not evaluated",
+                             low=0, high=1),
+        "max_patches": Param(0, "evaluate at most this many patches per level (0 = all)", low=0),
+        "iterations": Param(2, "readouts at the finest level, each re-warped by the last fit",
+                            low=1),
         "finest": Param(0, "pyramid level of the final readout (1 = half the working size: "
-                           "faster, and better on blurry footage)"),
+                           "faster, and better on blurry footage)", low=0),
         "refine_stride": Param(16, "patch grid step of the finest-level readouts that only "
                                    "refine the pre-warp (iterations > 1; 0 = stride): 2 x stride "
                                    "reads a quarter of the patches, ~15 % faster for the same "
-                                   "accuracy"),
+                                   "accuracy", low=0),
         "coarse_iterations": Param(3, "readouts at the coarsest pyramid level, each re-warped "
-                                      "by the last fit (finer levels start close and read once)"),
+                                      "by the last fit (finer levels start close and read once)",
+                                      low=1),
         "converged": Param(0.1, "stop re-reading the coarsest level once a readout moved its "
                                 "fitted motion by less than this many of that level's pixels "
                                 "at the corners: a steady pan the previous motion predicts "
                                 "reads it once, not coarse_iterations times (0 = always "
-                                "coarse_iterations readouts)"),
+                                "coarse_iterations readouts)", low=0),
         "texture_scale": Param(1e-5, "structure-tensor eigenvalue (gray in [0, 1]) at which a "
                                      "patch's texture weight is 0.5: small = every textured "
                                      "patch counts alike, only near-flat and edge-only ones are "
-                                     "down-weighted (suits blurred footage)"),
+                                     "down-weighted (suits blurred footage)", above=0),
         "contrast_floor": Param(0.005, "patch pairs with a lower RMS contrast (gray in [0, 1]) "
                                        "are flat and not read (0 = the model's own, 0.02 for "
-                                       "the shipped models)"),
+                                       "the shipped models)", low=0),
         "coarser_below": Param(0.5, "when fewer than this fraction of the final readout's "
                                     "patches agree with the fitted motion (motion blur), also "
                                     "read up to two levels coarser and keep the best-supported "
-                                    "(0 = never)"),
+                                    "(0 = never)", low=0),
         "coarser_stride": Param(16, "patch grid step (working-size pixels) of those coarser "
                                     "readouts (0 = stride): 2 x stride is as dense in a "
-                                    "half-size image as stride in the full one"),
+                                    "half-size image as stride in the full one", low=0),
         "search": Param(1, "also start the coarsest level from a (2 search + 1)^2 grid of "
-                           "shifts (shaking cameras); 0 = prior and identity only"),
+                           "shifts (shaking cameras); 0 = prior and identity only", low=0),
         "search_below": Param(0.9, "with search > 0: read the grid of shifts only when fewer "
                                    "than this fraction of the coarsest patches agree with the "
                                    "better of the previous motion and no motion (1 = always; "
-                                   "always on a first frame)"),
+                                   "always on a first frame)", low=0),
         "start_tolerance": Param(0.015, "choose the coarsest level's start by photometric "
                                         "agreement: the fraction of textured pixels whose gray "
                                         "value (0-1) the next frame repeats to within this "
-                                        "(0 = by the number of agreeing patches)"),
+                                        "(0 = by the number of agreeing patches)", low=0),
         "start_model": Param("translation", "motion model fitted to each start's readout at the "
                                             "coarsest level (its few patches fit a richer "
                                             "model's zoom to noise; the re-reads that follow "
                                             "fit the full model)",
                              choices=("translation", "similarity", "affine", "homography")),
         "prior_levels": Param(0, "pyramid levels used when the previous frame's motion "
-                                 "predicts this one (0 = always the full pyramid)"),
+                                 "predicts this one (0 = always the full pyramid)", low=0),
         "retry_below": Param(0.6, "with prior_levels > 0: when fewer than this fraction of the "
                                   "patches agree with the motion found from the previous "
-                                  "frame's, also search with the full pyramid"),
+                                  "frame's, also search with the full pyramid", low=0),
         **_GRBM_COMMON,
     },
 )
@@ -751,11 +756,11 @@ def _make_grbm(**kwargs: Any) -> Engine:
     "moving camera: Lucas-Kanade corner tracks + RANSAC camera motion + compensated background "
     "model (classical baseline of grbm)",
     params={
-        "max_corners": Param(400, "Shi-Tomasi corners tracked per frame"),
-        "lk_window": Param(21, "Lucas-Kanade window side (px)"),
-        "lk_levels": Param(3, "Lucas-Kanade pyramid levels above the base"),
+        "max_corners": Param(400, "Shi-Tomasi corners tracked per frame", low=1),
+        "lk_window": Param(21, "Lucas-Kanade window side (px)", low=3),
+        "lk_levels": Param(3, "Lucas-Kanade pyramid levels above the base", low=0),
         "fb_threshold": Param(1.0, "forward-backward tracking error (px) above which a track "
-                                   "is dropped"),
+                                   "is dropped", above=0),
         **_COMMON,
     },
 )

@@ -126,6 +126,15 @@ def test_methods_json_matches_registry(capsys):
         k: p.default for k, p in spec.params.items()}
 
 
+def test_methods_shows_each_parameters_range(capsys):
+    assert main(["methods", "grbm"]) == 0
+    out = capsys.readouterr().out
+    assert "patch grid step in working-size pixels (>=1)" in out
+    assert main(["methods", "grbm", "--json"]) == 0
+    alpha = json.loads(capsys.readouterr().out)[0]["params"]["alpha"]
+    assert (alpha["low"], alpha["high"]) == (0, 1)
+
+
 def test_methods_unknown_name(capsys):
     assert main(["methods", "nope"]) == 2
     assert "unknown method" in capsys.readouterr().err

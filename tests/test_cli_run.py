@@ -193,6 +193,7 @@ def test_output_equal_to_input_is_refused(tmp_path, clip, capsys):
     (["-m", "_test_diff", "--param", "nope=1"], "no parameter"),
     (["-m", "_test_diff", "--param", "threshold=high"], "takes a int"),
     (["-m", "_test_diff", "--param", "threshold"], "key=value"),
+    (["-m", "grbm", "--param", "stride=0"], "must be at least 1"),
     (["-m", "_test_diff", "--step", "0"], "step"),
 ])
 def test_bad_options_exit_2(tmp_path, clip, capsys, args, words):

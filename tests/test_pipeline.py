@@ -143,6 +143,23 @@ def test_engines_registered_with_documented_params():
         assert "work_width" in spec.params and spec.params["work_width"].help
 
 
+@pytest.mark.parametrize("name, params, words", [
+    ("grbm", {"stride": 0}, "'stride' must be at least 1"),
+    ("grbm", {"ransac_threshold": 0.0}, "greater than 0"),  # a bound kept by grbm's own default
+    ("grbm", {"alpha": 2.0}, "'alpha' must be at most 1"),
+    ("grbm", {"fg_alpha": float("nan")}, "'fg_alpha' must be at least 0"),
+    ("compensated", {"close": -1}, "'close' must be at least 0"),
+    ("compensated", {"max_corners": 0}, "'max_corners' must be at least 1"),
+])
+def test_out_of_range_parameters_are_refused_when_the_engine_is_made(name, params, words):
+    with pytest.raises(InputError, match=words):
+        create_engine(name, **params)
+
+
+def test_parameters_at_their_bounds_are_accepted():
+    create_engine("grbm", alpha=1.0, fg_alpha=0.0, close=0, fill_holes=0, search=0)
+
+
 def test_thread_limit_is_scoped_to_the_frame():
     from bgsub.pipeline import _openblas, limited_threads
 

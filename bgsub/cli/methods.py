@@ -49,6 +49,8 @@ def describe(spec: EngineSpec, *, is_default: bool) -> Dict[str, Any]:
                 "type": type(p.default).__name__,
                 "help": p.help,
                 **({"choices": list(p.choices)} if p.choices is not None else {}),
+                **{bound: getattr(p, bound) for bound in ("low", "high", "above")
+                   if getattr(p, bound) is not None},
             }
             for key, p in spec.params.items()
         },
@@ -57,6 +59,18 @@ def describe(spec: EngineSpec, *, is_default: bool) -> Dict[str, Any]:
 
 def _format_value(value: Any) -> str:
     return str(value).lower() if isinstance(value, bool) else str(value)
+
+
+def _bounds_text(p: Dict[str, Any]) -> str:
+    """A parameter's range as text: ">=1", "0-1", ">0" (no spaces, so it never wraps; empty
+    when unbounded)."""
+    low, high, above = p.get("low"), p.get("high"), p.get("above")
+    if low is not None and high is not None:
+        return f"{low:g}-{high:g}"
+    parts = [f">={low:g}"] if low is not None else []
+    parts += [f">{above:g}"] if above is not None else []
+    parts += [f"<={high:g}"] if high is not None else []
+    return ",".join(parts)
 
 
 def format_text(entries: List[Dict[str, Any]]) -> str:
@@ -74,6 +88,9 @@ def format_text(entries: List[Dict[str, Any]]) -> str:
             help_text = p["help"]
             if "choices" in p:
                 help_text += " (one of: " + ", ".join(map(_format_value, p["choices"])) + ")"
+            bounds = _bounds_text(p)
+            if bounds:
+                help_text += f" ({bounds})"
             wrapped = textwrap.wrap(help_text, width=max(40, 96 - width - 6)) or [""]
             lines.append(f"    {key:<{width}}  {wrapped[0]}")
             lines.extend(f"    {'':<{width}}  {more}" for more in wrapped[1:])

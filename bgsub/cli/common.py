@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import Any, Iterable, Optional
+from pathlib import Path
+from typing import Any, Iterable, List, Optional, Tuple
 
 from tqdm import tqdm
+
+from bgsub.errors import OutputError
 
 
 def add_source_options(parser: argparse.ArgumentParser) -> None:
@@ -49,3 +52,22 @@ def note(message: str, *, quiet: bool = False) -> None:
     """A one-line notice on stderr (not an error)."""
     if not quiet:
         print(f"bgsub: {message}", file=sys.stderr)
+
+
+def check_distinct(inputs: Iterable[Any], outputs: List[Tuple[str, Any]]) -> None:
+    """Refuse an output that is one of the inputs or is given to two options.
+
+    ``outputs`` pairs each option (``"-o"``, ``"--vis"``) with its path; unset paths (None or
+    "") are skipped. Even ``--overwrite`` must not replace what the command is reading.
+    """
+    sources = {Path(p).resolve() for p in inputs if p}
+    seen = {}
+    for flag, path in outputs:
+        if not path:
+            continue
+        resolved = Path(path).resolve()
+        if resolved in sources:
+            raise OutputError(f"{path}: {flag} would overwrite an input")
+        if resolved in seen:
+            raise OutputError(f"{path}: given to both {seen[resolved]} and {flag}")
+        seen[resolved] = flag

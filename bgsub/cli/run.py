@@ -8,12 +8,11 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-from pathlib import Path
 from typing import List, Optional
 
 from bgsub import engines
 from bgsub.cli import common
-from bgsub.errors import InputError, OutputError
+from bgsub.errors import InputError
 from bgsub.sinks import (
     RunStats,
     VideoSink,
@@ -85,15 +84,7 @@ def _check_outputs(args: argparse.Namespace) -> None:
     check_mask_output(args.output, overwrite=args.overwrite)
     for flag, path in outputs[1:]:
         check_video_output(path, overwrite=args.overwrite)
-    source = Path(args.input).resolve()
-    seen = {}
-    for flag, path in outputs:
-        resolved = Path(path).resolve()
-        if resolved == source:
-            raise OutputError(f"{path}: {flag} would overwrite the input")
-        if resolved in seen:
-            raise OutputError(f"{path}: given to both {seen[resolved]} and {flag}")
-        seen[resolved] = flag
+    common.check_distinct([args.input], outputs)
 
 
 def _summary(stats: RunStats, method: str, outputs: List[str]) -> str:

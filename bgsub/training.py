@@ -9,7 +9,8 @@ source run a curriculum. This module ships random-dot sources (:class:`Translate
 target on the mapping units, all as float32 matmuls over whole minibatches: one pass over
 10,000 13x13 pairs with the paper's sizes costs about 0.1 s on one core. It watches for
 divergence and stops with a :class:`~bgsub.errors.ProcessingError` rather than train into
-garbage.
+garbage. Ctrl-C after the first epoch raises :class:`TrainingInterrupted`, which carries the model
+as it was after the last finished epoch, so a long run is not lost.
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ __all__ = [
     "FixedPairs",
     "TrainConfig",
     "TrainResult",
+    "TrainingInterrupted",
     "train",
     "evaluate_translation",
     "evaluate_rotation",
@@ -70,6 +72,9 @@ class Curriculum:
                 ) from None
             if not sep:
                 raise InputError(f"--curriculum takes EPOCH:LIMIT pairs, not {part!r}")
+            # A NaN or negative limit would reach the samplers as an impossible range.
+            if not 0 <= stages[-1][1] < math.inf:
+                raise InputError(f"--curriculum limits must be numbers >= 0, not {limit!r} in {text!r}")
         if [u for u, _ in stages] != sorted(u for u, _ in stages):
             raise InputError(f"--curriculum epochs must increase: {text!r}")
         return cls(tuple(stages))
@@ -268,6 +273,12 @@ class TrainConfig:
                 raise InputError(f"{name.replace('_', '-')} must be at least 1, not {getattr(self, name)}")
         if not (self.lr > 0 and math.isfinite(self.lr)):
             raise InputError(f"learning rate must be positive, not {self.lr}")
+        # NaN would otherwise surface much later as a misleading "training diverged".
+        for name in ("weight_decay", "sparsity_cost"):
+            if not 0 <= getattr(self, name) < math.inf:
+                raise InputError(f"{name.replace('_', ' ')} must be a number >= 0, not {getattr(self, name)}")
+        if int(self.seed) < 0:
+            raise InputError(f"seed must be a whole number >= 0, not {self.seed}")  # numpy refuses < 0
         if not 0 <= self.momentum < 1:
             raise InputError(f"momentum must be in [0, 1), not {self.momentum}")
         if not 0 < self.sparsity_target < 1:
@@ -287,6 +298,19 @@ class TrainResult:
     seconds: float
     epochs_run: int
     stopped_early: bool = False
+
+
+class TrainingInterrupted(KeyboardInterrupt):
+    """Ctrl-C during :func:`train` after at least one finished epoch.
+
+    ``result`` holds the model as it was after the last finished epoch (``result.epochs_run``
+    of them; ``meta["interrupted"]`` is true). Being a :class:`KeyboardInterrupt`, it stops
+    callers that do not know about it just like a plain Ctrl-C.
+    """
+
+    def __init__(self, result: TrainResult) -> None:
+        super().__init__(f"interrupted after {result.epochs_run} epochs")
+        self.result = result
 
 
 @dataclass
@@ -438,6 +462,8 @@ def train(
     ProcessingError
         Training diverged (non-finite or exploding reconstruction error or weights), or the
         source yields no usable pairs.
+    TrainingInterrupted
+        Ctrl-C after at least one finished epoch (before that: a plain KeyboardInterrupt).
     """
     cfg = config or TrainConfig()
     cfg.check()
@@ -491,51 +517,61 @@ def train(
     }
     errors: List[float] = []
     start = time.perf_counter()
+
+    def result(params: _Params, epochs_run: int, stopped_early: bool) -> TrainResult:
+        seconds = time.perf_counter() - start
+        meta["epochs"] = epochs_run
+        meta["train_seconds"] = round(seconds, 2)
+        meta["final_error"] = errors[epochs_run - 1] if epochs_run else None
+        return TrainResult(model=_to_model(params, cfg, whitening, meta), errors=errors[:epochs_run],
+                           seconds=seconds, epochs_run=epochs_run, stopped_early=stopped_early)
+
+    # The weights after the last finished epoch: Ctrl-C mid-epoch (even mid-update) keeps these,
+    # which passed the divergence guard. Copying them costs far less than an epoch.
+    finished: Optional[_Params] = None
+    done = 0  # epochs finished
     stopped = False
     epoch = -1
-    for epoch in range(cfg.epochs):
-        if epoch > 0 and cfg.fresh_pairs:
-            x, y = draw(epoch)
-        lr = cfg.lr
-        if cfg.lr_schedule == "linear" and epoch >= cfg.epochs // 2:
-            frac = (epoch - cfg.epochs // 2) / max(1, cfg.epochs - cfg.epochs // 2)
-            lr = cfg.lr * (1.0 - 0.9 * frac)
-        order = rng.permutation(len(x))
-        total = 0.0
-        n_used = 0
-        for b in range(0, len(x) - cfg.batch_size + 1, cfg.batch_size):
-            sel = order[b : b + cfg.batch_size]
-            # Overflow is caught by the divergence guard below; numpy's warnings would only
-            # clutter the progress bar.
-            with np.errstate(over="ignore", invalid="ignore"):
-                total += _cd_step(p, inc, x[sel], y[sel], cfg=cfg, lr=lr, rng=rng)
-            n_used += len(sel)
-            if not math.isfinite(total):
-                break  # no point finishing the epoch
-        err = total / (n_used * n_vis)
-        errors.append(err)
-        if not math.isfinite(err) or err > cfg.max_error or not all(np.all(np.isfinite(a)) for a in p.arrays()):
-            raise ProcessingError(
-                f"training diverged at epoch {epoch + 1} (reconstruction error {err:.3g}); "
-                f"lower the learning rate (now {cfg.lr:g})"
-                + ("" if cfg.whiten or cfg.output_units == "binary" else " or use --whiten")
-            )
-        if on_epoch is not None:
-            meta["epochs"] = epoch + 1
-            if on_epoch(epoch, err, lambda: _to_model(p, cfg, whitening, meta)):
-                stopped = True
-                break
-    seconds = time.perf_counter() - start
-    meta["epochs"] = epoch + 1
-    meta["train_seconds"] = round(seconds, 2)
-    meta["final_error"] = errors[-1] if errors else None
-    return TrainResult(
-        model=_to_model(p, cfg, whitening, meta),
-        errors=errors,
-        seconds=seconds,
-        epochs_run=epoch + 1,
-        stopped_early=stopped,
-    )
+    try:
+        for epoch in range(cfg.epochs):
+            if epoch > 0 and cfg.fresh_pairs:
+                x, y = draw(epoch)
+            lr = cfg.lr
+            if cfg.lr_schedule == "linear" and epoch >= cfg.epochs // 2:
+                frac = (epoch - cfg.epochs // 2) / max(1, cfg.epochs - cfg.epochs // 2)
+                lr = cfg.lr * (1.0 - 0.9 * frac)
+            order = rng.permutation(len(x))
+            total = 0.0
+            n_used = 0
+            for b in range(0, len(x) - cfg.batch_size + 1, cfg.batch_size):
+                sel = order[b : b + cfg.batch_size]
+                # Overflow is caught by the divergence guard below; numpy's warnings would only
+                # clutter the progress bar.
+                with np.errstate(over="ignore", invalid="ignore"):
+                    total += _cd_step(p, inc, x[sel], y[sel], cfg=cfg, lr=lr, rng=rng)
+                n_used += len(sel)
+                if not math.isfinite(total):
+                    break  # no point finishing the epoch
+            err = total / (n_used * n_vis)
+            errors.append(err)
+            if not math.isfinite(err) or err > cfg.max_error or not all(np.all(np.isfinite(a)) for a in p.arrays()):
+                raise ProcessingError(
+                    f"training diverged at epoch {epoch + 1} (reconstruction error {err:.3g}); "
+                    f"lower the learning rate (now {cfg.lr:g})"
+                    + ("" if cfg.whiten or cfg.output_units == "binary" else " or use --whiten")
+                )
+            finished, done = _Params(*(a.copy() for a in p.arrays())), epoch + 1
+            if on_epoch is not None:
+                meta["epochs"] = epoch + 1
+                if on_epoch(epoch, err, lambda: _to_model(p, cfg, whitening, meta)):
+                    stopped = True
+                    break
+    except KeyboardInterrupt:
+        if finished is None:
+            raise  # nothing worth keeping yet
+        meta["interrupted"] = True
+        raise TrainingInterrupted(result(finished, done, True)) from None
+    return result(p, epoch + 1, stopped)
 
 
 # ---------------------------------------------------------------------------------- evaluation

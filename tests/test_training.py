@@ -8,11 +8,13 @@ import pytest
 from bgsub.cli import main
 from bgsub.errors import InputError, ProcessingError
 from bgsub.rbm import GatedRBM
+from bgsub import training
 from bgsub.training import (
     Curriculum,
     FixedPairs,
     RotatedDots,
     TrainConfig,
+    TrainingInterrupted,
     TranslatedDots,
     _cd_step,
     _fit_whitening,
@@ -56,7 +58,7 @@ def test_curriculum_limits_the_shift_range():
     assert np.abs(src.sample(rng, 500, epoch=25)[2]).max() == 3
 
 
-@pytest.mark.parametrize("text", ["10", "a:1", "20:1,10:2"])
+@pytest.mark.parametrize("text", ["10", "a:1", "20:1,10:2", "10:nan", "10:-1", "10:inf"])
 def test_bad_curriculum_text_is_an_input_error(text):
     with pytest.raises(InputError):
         Curriculum.parse(text)
@@ -176,6 +178,54 @@ def test_training_is_reproducible_with_a_seed():
 def test_absurd_learning_rate_stops_with_a_clear_error():
     with pytest.raises(ProcessingError, match="diverged.*learning rate"):
         train(TranslatedDots(patch_size=9), _small_config(lr=1e4, init_scale=0.1, epochs=20))
+
+
+@pytest.mark.parametrize("change", [dict(weight_decay=float("nan")), dict(weight_decay=-1.0),
+                                    dict(sparsity_cost=float("nan")), dict(sparsity_cost=-1.0),
+                                    dict(seed=-1)])
+def test_settings_that_cannot_work_are_refused_before_training(change):
+    # NaN weight decay used to train and then report a misleading "diverged".
+    with pytest.raises(InputError):
+        _small_config(**change).check()
+
+
+def test_ctrl_c_keeps_the_model_of_the_last_finished_epoch(monkeypatch):
+    # 300 pairs = 3 minibatches per epoch; Ctrl-C right after the second update of epoch 3,
+    # when the weights are already part-way into that epoch.
+    step, calls = training._cd_step, []
+
+    def interrupted_step(*args, **kwargs):
+        calls.append(1)
+        result = step(*args, **kwargs)
+        if len(calls) == 8:
+            raise KeyboardInterrupt
+        return result
+
+    monkeypatch.setattr(training, "_cd_step", interrupted_step)
+    after = {}
+
+    def keep(epoch, error, get_model):
+        after[epoch + 1] = get_model()
+
+    # Caught as a KeyboardInterrupt: callers that do not know TrainingInterrupted still stop
+    # (and a regression fails this test rather than interrupting the whole test run).
+    with pytest.raises(KeyboardInterrupt) as stop:
+        train(TranslatedDots(patch_size=9), _small_config(epochs=5, n_pairs=300), on_epoch=keep)
+    assert isinstance(stop.value, TrainingInterrupted)
+    result = stop.value.result
+    assert result.epochs_run == 2 and len(result.errors) == 2 and result.stopped_early
+    assert result.model.meta["epochs"] == 2 and result.model.meta["interrupted"] is True
+    np.testing.assert_array_equal(result.model.wxf, after[2].wxf)
+
+
+def test_ctrl_c_in_the_first_epoch_is_a_plain_keyboard_interrupt(monkeypatch):
+    def interrupted_step(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(training, "_cd_step", interrupted_step)
+    with pytest.raises(KeyboardInterrupt) as stop:
+        train(TranslatedDots(patch_size=9), _small_config(epochs=5, n_pairs=300))
+    assert not isinstance(stop.value, TrainingInterrupted)
 
 
 def test_flat_training_data_is_refused():

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 from pathlib import Path
-from typing import Any, Dict, Optional
+from typing import Any, Callable, Dict, List, Optional, Tuple
 
-from bgsub.cli.common import note
+from bgsub.cli.common import check_distinct, note
 from bgsub.errors import InputError, OutputError
 
 DOTS = ("dots-translation", "dots-rotation")
@@ -96,9 +97,10 @@ def register(subparsers: Any) -> None:
 
     data = parser.add_argument_group("data")
     data.add_argument("--max-shift", type=float, default=None, metavar="PX",
-                      help="largest |dx|, |dy| (default 1 for dots, 3 for images)")
+                      help="largest |dx|, |dy|, at most half of --patch-size "
+                           "(default 1 for dots, 3 for images)")
     data.add_argument("--max-angle", type=float, default=30.0, metavar="DEG",
-                      help="rotation range for dots-rotation (default 30)")
+                      help="rotation range for dots-rotation, up to 180 (default 30)")
     data.add_argument("--curriculum", default=None, metavar="E:L,...",
                       help="grow the range: e.g. 100:1,200:2 = at most 1 before epoch 100, 2 before 200, "
                            "then all (default for dots with --max-shift > 1: 100:1,200:2,...)")
@@ -124,7 +126,8 @@ def _sigmas(text: str) -> tuple:
         values = tuple(float(v) for v in text.split(",") if v.strip())
     except ValueError:
         raise InputError(f"--blur takes sigmas like 1,2, not {text!r}") from None
-    if not values or min(values) <= 0:
+    # Written so that NaN fails too (every comparison with NaN is false).
+    if not values or not all(0 < v < math.inf for v in values):
         raise InputError(f"--blur: blur sigmas must be positive numbers, not {text!r}")
     return values
 
@@ -143,21 +146,140 @@ def _imagedata():
     return imagedata
 
 
-def run(args: argparse.Namespace) -> int:
-    from bgsub import training
-    from bgsub.training import Curriculum, TrainConfig
+# ---------------------------------------------------------------------------- checks up front
 
-    out = Path(args.output)
-    if out.exists() and not args.overwrite:
-        raise OutputError(f"{out} exists (use --overwrite to replace it)")
-    if not out.parent.is_dir():
-        raise OutputError(f"cannot write {out}: folder {out.parent} does not exist")
+# (option, test, what the value must be). Every test is a comparison that NaN fails, and the
+# float ones have a finite upper bound, so NaN and inf are refused along with the out-of-range.
+_OPTION_RULES: Tuple[Tuple[str, Callable[[float], bool], str], ...] = (
+    ("--patch-size", lambda v: v >= 3, "at least 3 (smaller patches cannot show motion)"),
+    ("--factors", lambda v: v >= 1, "at least 1"),
+    ("--hidden", lambda v: v >= 1, "at least 1"),
+    ("--epochs", lambda v: v >= 1, "at least 1"),
+    ("--pairs", lambda v: v >= 1, "at least 1"),
+    ("--batch", lambda v: v >= 1, "at least 1"),
+    ("--cd-k", lambda v: v >= 1, "at least 1"),
+    ("--lr", lambda v: 0 < v < math.inf, "a number > 0"),
+    ("--momentum", lambda v: 0 <= v < 1, "in [0, 1)"),
+    ("--weight-decay", lambda v: 0 <= v < math.inf, "a number >= 0"),
+    ("--sparsity", lambda v: 0 < v < 1, "in (0, 1)"),
+    ("--sparsity-cost", lambda v: 0 <= v < math.inf, "a number >= 0"),
+    ("--seed", lambda v: v >= 0, "a whole number >= 0"),
+    # 0 would train on pairs that do not move at all: a motion model that has seen no motion.
+    ("--max-shift", lambda v: 1 <= v < math.inf, "a number of pixels >= 1"),
+    ("--max-angle", lambda v: 0 < v <= 180, "in (0, 180] degrees (+-180 covers every rotation)"),
+    ("--motion-blur", lambda v: v >= 0, "a number of pixels >= 0 (0 or 1: no motion blur)"),
+    ("--video-step", lambda v: v >= 1, "at least 1"),
+    ("--video-scale", lambda v: 0 < v < math.inf, "a number > 0, e.g. 0.5"),
+    ("--eval-pairs", lambda v: v >= 0, "at least 0 (0 skips the held-out evaluation)"),
+)
 
-    kind = args.data[0] if len(args.data) == 1 and args.data[0] in DOTS + (IMAGES,) else "video"
+
+def _check_options(args: argparse.Namespace) -> None:
+    """Refuse numeric options that cannot work, naming the option, before any data is made."""
+    for option, ok, rule in _OPTION_RULES:
+        value = getattr(args, option[2:].replace("-", "_"))
+        if value is not None and not ok(value):
+            raise InputError(f"{option} must be {rule}, not {value:g}")
+    if args.batch > args.pairs:
+        raise InputError(f"--batch {args.batch} is larger than --pairs {args.pairs}: "
+                         "an epoch must hold at least one minibatch")
+
+
+def _max_shift(args: argparse.Namespace, kind: str) -> float:
+    """``--max-shift`` or its default for ``kind``, checked against the patch size.
+
+    The readout that scores the held-out pairs (and later reads motion with the model's
+    ``max_shift`` as its range) compares pixels that stay inside the patch after the shift,
+    and the held-out pixel accuracy counts pixels at least ``max_shift`` from the border: both
+    need shifts of at most half the patch. (dots-rotation does not use it.)
+    """
     dots = kind in DOTS
     max_shift = args.max_shift if args.max_shift is not None else (1.0 if dots else 3.0)
     if dots and max_shift != int(max_shift):
         raise InputError(f"--max-shift for dots must be a whole number of pixels, not {max_shift:g}")
+    p = args.patch_size
+    limit = (p - 1) // 2
+    if kind != "dots-rotation" and max_shift > limit:
+        raise InputError(
+            f"--max-shift {max_shift:g} is too large for {p}x{p} patches: at most {limit} "
+            f"(half the patch); lower --max-shift or raise --patch-size to {2 * math.ceil(max_shift) + 1}"
+        )
+    return max_shift
+
+
+def _data_kind(data: List[str]) -> str:
+    """One of :data:`DOTS`, :data:`IMAGES`, or ``"video"`` for a list of existing video paths."""
+    kinds = [d for d in data if d in DOTS + (IMAGES,)]
+    if not kinds:
+        for path in data:
+            if not Path(path).exists() and not any(ch in path for ch in "*?["):
+                raise InputError(
+                    f"--data {path}: no such file (kinds: {', '.join(DOTS + (IMAGES,))}, or video paths)"
+                )
+        return "video"
+    if len(data) > 1:
+        others = ", ".join(d for d in data if d != kinds[0])
+        raise InputError(
+            f"--data {kinds[0]} is a built-in data kind and must be given alone (also got {others}); "
+            "to train on your own footage, give only video paths"
+        )
+    return kinds[0]
+
+
+def _check_output(args: argparse.Namespace, kind: str) -> Path:
+    """The model path, checked before any work: a file (not a folder) whose folder can be
+    written, new unless ``--overwrite``, and not one of the videos being read."""
+    from bgsub.sinks import _check_writable_folder  # the folder check `run` and `flow` use
+
+    out = Path(args.output)
+    # A trailing slash means a folder even if it does not exist yet (Path would drop it).
+    if out.is_dir() or args.output.endswith(("/", os.sep)):
+        raise OutputError(f"{args.output}: {'is' if out.is_dir() else 'names'} a folder, not a model "
+                          f"file (give a file name, e.g. {out / 'model.npz'})")
+    if out.exists() and not out.is_file():
+        raise OutputError(f"{out}: is not a regular file")  # e.g. /dev/null: never replace it
+    if out.exists() and not args.overwrite:
+        raise OutputError(f"{out}: already exists (use --overwrite to replace it)")
+    _check_writable_folder(out.parent, out)
+    if kind == "video":
+        check_distinct(args.data, [("-o", out)])
+    return out
+
+
+def _save(model: Any, out: Path) -> None:
+    """Write ``model`` to ``out`` (atomically: :meth:`GatedRBM.save` renames a temporary file)."""
+    try:
+        model.save(out, overwrite=True)  # _check_output refused an existing file without --overwrite
+    except OSError as err:  # e.g. the disk filled up or the folder turned read-only meanwhile
+        raise OutputError(f"cannot write the model to {out}: {err.strerror or err}") from None
+
+
+def _save_interrupted(model: Any, out: Path, when: str, what: str = "the model so far") -> int:
+    """Ctrl-C with a usable model: keep it, say so, and exit as interrupted (130)."""
+    try:
+        _save(model, out)
+    except OutputError as err:
+        note(f"interrupted {when}; {what} was not saved ({err})")
+    else:
+        note(f"interrupted {when}; saved {what} to {out}")
+    return 130
+
+
+# ---------------------------------------------------------------------------------- command
+
+
+def run(args: argparse.Namespace) -> int:
+    from bgsub import training
+    from bgsub.training import Curriculum, TrainConfig
+
+    # Every check first: a mistake must not cost a training run.
+    kind = _data_kind(args.data)
+    _check_options(args)
+    max_shift = _max_shift(args, kind)
+    blur = _sigmas(args.blur) if args.blur else ()
+    out = _check_output(args, kind)
+    dots = kind in DOTS
+
     curriculum_text = args.curriculum
     if curriculum_text is None and kind == "dots-translation" and max_shift > 1:
         curriculum_text = _default_curriculum(max_shift)
@@ -172,36 +294,8 @@ def run(args: argparse.Namespace) -> int:
     else:
         epochs = 200
 
-    p = args.patch_size
-    source: Any
-    if kind == "dots-translation":
-        source = training.TranslatedDots(patch_size=p, max_shift=int(max_shift), curriculum=curriculum)
-        description = f"random dots, integer shifts |dx|,|dy| <= {int(max_shift)}"
-    elif kind == "dots-rotation":
-        source = training.RotatedDots(patch_size=p, max_angle=args.max_angle, curriculum=curriculum)
-        description = f"random dots, rotations within +-{args.max_angle:g} deg"
-    elif kind == IMAGES:
-        source = _imagedata().shifted_image_pairs(max_shift=max_shift, curriculum=curriculum,
-                                                  patch_size=p,
-                                                  blur=_sigmas(args.blur) if args.blur else (),
-                                                  motion_blur=args.motion_blur)
-        description = f"shifted photographs, shifts up to {max_shift:g} px"
-        if args.blur or args.motion_blur > 1:
-            description += " (with blurred copies)"
-    else:
-        for path in args.data:
-            if not Path(path).exists() and not any(ch in path for ch in "*?["):
-                raise InputError(
-                    f"--data {path}: no such file (kinds: {', '.join(DOTS + (IMAGES,))}, or video paths)"
-                )
-        note("collecting patch pairs from the videos ...", quiet=args.quiet)
-        source = _imagedata().video_frame_pairs(
-            args.data, patch_size=p, step=args.video_step, scale=args.video_scale, seed=args.seed
-        )
-        description = "video frame pairs: " + ", ".join(Path(a).name for a in args.data)
-
     config = TrainConfig(
-        patch_size=p,
+        patch_size=args.patch_size,
         n_factors=args.factors,
         n_hidden=args.hidden,
         output_units=args.output_units or ("binary" if dots else "gaussian"),
@@ -221,34 +315,39 @@ def run(args: argparse.Namespace) -> int:
         fresh_pairs=not args.fixed_pairs,
         seed=args.seed,
     )
-    if kind == "dots-translation" and max_shift > 1 and args.fixed_pairs:
-        note("shifts > 1 px rarely learn from a fixed training set; consider dropping --fixed-pairs",
-             quiet=args.quiet)
+    config.check()  # the library's own guard, before the data: collecting video pairs takes a while
 
-    bar = _progress(epochs, quiet=args.quiet)
-
-    def on_epoch(epoch: int, error: float, _get_model: Any) -> None:
-        if bar is not None:
-            bar.set_postfix_str(f"recon err {error:.4f}")
-            bar.update(1)
+    def describe(model: Any) -> Any:
+        model.meta["curriculum"] = str(curriculum)
+        model.meta["data_kind"] = kind
+        if kind != "dots-rotation":
+            model.meta["max_shift"] = max_shift
+        else:
+            model.meta["max_angle"] = args.max_angle
+        return model
 
     try:
-        result = training.train(source, config, on_epoch=on_epoch, data_description=description)
-    finally:
-        if bar is not None:
-            bar.close()
-    model = result.model
-    model.meta["curriculum"] = str(curriculum)
-    model.meta["data_kind"] = kind
-    if kind != "dots-rotation":
-        model.meta["max_shift"] = max_shift
-    else:
-        model.meta["max_angle"] = args.max_angle
+        source, description = _source(kind, args, max_shift=max_shift, curriculum=curriculum, blur=blur)
+        if kind == "dots-translation" and max_shift > 1 and args.fixed_pairs:
+            note("shifts > 1 px rarely learn from a fixed training set; consider dropping --fixed-pairs",
+                 quiet=args.quiet)
+        result = _train(source, config, description, quiet=args.quiet)
+    except training.TrainingInterrupted as stop:
+        done = stop.result.epochs_run
+        return _save_interrupted(describe(stop.result.model), out, f"after {done} of {epochs} epochs")
+    except KeyboardInterrupt:
+        note(f"interrupted before the first epoch finished; no model was written to {out}")
+        return 130
+    model = describe(result.model)
 
-    scores = _evaluate(kind, model, max_shift=max_shift, max_angle=args.max_angle, n=args.eval_pairs)
+    try:
+        scores = _evaluate(kind, model, max_shift=max_shift, max_angle=args.max_angle, n=args.eval_pairs)
+    except KeyboardInterrupt:  # training is complete: keep it, without the held-out scores
+        return _save_interrupted(model, out, "during the held-out evaluation",
+                                 "the fully trained model (without held-out scores)")
     if scores:
         model.meta["held_out"] = scores
-    model.save(out, overwrite=True)
+    _save(model, out)
 
     if not args.quiet:
         lines = [
@@ -261,6 +360,51 @@ def run(args: argparse.Namespace) -> int:
         for line in lines:
             print(line)
     return 0
+
+
+def _source(kind: str, args: argparse.Namespace, *, max_shift: float, curriculum: Any,
+            blur: Tuple[float, ...]) -> Tuple[Any, str]:
+    """The pair source for ``kind`` and a one-line description of it for the model's meta."""
+    from bgsub import training
+
+    p = args.patch_size
+    if kind == "dots-translation":
+        source = training.TranslatedDots(patch_size=p, max_shift=int(max_shift), curriculum=curriculum)
+        return source, f"random dots, integer shifts |dx|,|dy| <= {int(max_shift)}"
+    if kind == "dots-rotation":
+        source = training.RotatedDots(patch_size=p, max_angle=args.max_angle, curriculum=curriculum)
+        return source, f"random dots, rotations within +-{args.max_angle:g} deg"
+    if kind == IMAGES:
+        source = _imagedata().shifted_image_pairs(max_shift=max_shift, curriculum=curriculum,
+                                                  patch_size=p, blur=blur,
+                                                  motion_blur=args.motion_blur)
+        description = f"shifted photographs, shifts up to {max_shift:g} px"
+        if blur or args.motion_blur > 1:
+            description += " (with blurred copies)"
+        return source, description
+    note("collecting patch pairs from the videos ...", quiet=args.quiet)
+    source = _imagedata().video_frame_pairs(
+        args.data, patch_size=p, step=args.video_step, scale=args.video_scale, seed=args.seed
+    )
+    return source, "video frame pairs: " + ", ".join(Path(a).name for a in args.data)
+
+
+def _train(source: Any, config: Any, description: str, *, quiet: bool) -> Any:
+    """:func:`bgsub.training.train` with a progress bar, closed before any message is printed."""
+    from bgsub import training
+
+    bar = _progress(config.epochs, quiet=quiet)
+
+    def on_epoch(epoch: int, error: float, _get_model: Any) -> None:
+        if bar is not None:
+            bar.set_postfix_str(f"recon err {error:.4f}")
+            bar.update(1)
+
+    try:
+        return training.train(source, config, on_epoch=on_epoch, data_description=description)
+    finally:
+        if bar is not None:
+            bar.close()
 
 
 def _evaluate(kind: str, model: Any, *, max_shift: float, max_angle: float, n: int) -> Dict[str, float]:

@@ -131,6 +131,11 @@ class SceneSpec:
             raise InputError(f"scene size {self.width}x{self.height} is too small (minimum 64x48)")
         if self.width > 4096 or self.height > 4096:
             raise InputError(f"scene size {self.width}x{self.height} is too large (max 4096)")
+        if self.width % 2 or self.height % 2:
+            # The scene's video would be padded to even by the writer and no longer match its
+            # frames and ground truth.
+            raise InputError(f"scene size {self.width}x{self.height} must be even in both "
+                             "dimensions (video codecs need it)")
         if self.n_frames < 2:
             raise InputError(f"a scene needs at least 2 frames, not {self.n_frames}")
         if self.n_objects is not None and not 0 <= self.n_objects <= 16:

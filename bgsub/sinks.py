@@ -162,10 +162,13 @@ class _VideoFile:
         except OSError as err:
             raise OutputError(f"{self.path}: cannot replace {self._temp} ({err.strerror})") \
                 from None
+        # OpenCV's FFmpeg writer silently drops the last column or row of an odd size: open it
+        # one pixel larger and pad each picture (write) so nothing is lost.
+        width, height = int(width), int(height)
         with quiet_opencv():
             writer = cv2.VideoWriter(str(self._temp), cv2.CAP_FFMPEG,
                                      cv2.VideoWriter_fourcc(*self.codec), self.fps,
-                                     (int(width), int(height)), self.is_color)
+                                     (width + width % 2, height + height % 2), self.is_color)
         if not writer.isOpened():
             writer.release()
             with contextlib.suppress(OSError):
@@ -173,11 +176,11 @@ class _VideoFile:
             raise OutputError(f"{self.path}: OpenCV cannot open a {self.codec} video writer "
                               f"for {width}x{height} frames here")
         self._writer = writer
-        self.size = (int(width), int(height))
+        self.size = (width, height)  # of the pictures written; the file's is padded to even
 
     def write(self, image: np.ndarray) -> None:
         assert self._writer is not None, "write() before open()"
-        self._writer.write(image)
+        self._writer.write(_even(image))
         self.frames_written += 1
 
     def close(self) -> None:
@@ -195,6 +198,14 @@ class _VideoFile:
         except OSError as err:
             raise OutputError(f"{self.path}: cannot move the finished video here "
                               f"({err.strerror}); it is at {self._temp}") from None
+
+
+def _even(image: np.ndarray) -> np.ndarray:
+    """``image`` with its last row / column repeated where its size is odd (see open())."""
+    h, w = image.shape[:2]
+    if h % 2 == 0 and w % 2 == 0:
+        return image
+    return cv2.copyMakeBorder(image, 0, h % 2, 0, w % 2, cv2.BORDER_REPLICATE)
 
 
 def _check_image(image: np.ndarray, *, ndims: Tuple[int, ...], what: str) -> None:
@@ -293,6 +304,12 @@ class MaskVideoSink(MaskSink):
 
     def __init__(self, path: Path, *, width: int, height: int, fps: float) -> None:
         super().__init__(path, width=width, height=height)
+        if width % 2 or height % 2:
+            # A padded or cropped mask would no longer match its frame or its ground truth.
+            raise OutputError(
+                f"{path}: {width}x{height} masks cannot be written to a video (OpenCV's video "
+                f"writer drops the last column or row of an odd size); write them as a folder "
+                f"of PNGs or resize the input to an even size (--width {width - width % 2})")
         codec = MASK_VIDEO_CODECS[path.suffix.lower()]
         self._video = _VideoFile(path, codec=codec, fps=fps, is_color=False)
         self._video.open(width, height)

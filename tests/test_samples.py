@@ -106,6 +106,12 @@ def test_default_scene_has_a_cdnet_warmup():
         SceneSpec("static", warmup=120)
 
 
+def test_odd_scene_sizes_are_refused():
+    # Its video would be padded to even and no longer match its frames and ground truth.
+    with pytest.raises(InputError, match="even"):
+        SceneSpec("pan", width=101, height=76)
+
+
 def test_objects_move_enter_and_leave():
     # Small view, long clip: the objects cross it completely.
     spec = SceneSpec("pan", seed=0, n_frames=150, n_objects=3, width=96, height=72)

@@ -23,6 +23,7 @@ import contextlib
 import math
 import os
 import re
+import shutil
 import sys
 import time
 from collections import Counter
@@ -33,7 +34,7 @@ from typing import Callable, Iterable, Optional, Tuple, Union
 
 import numpy as np
 
-from bgsub.errors import OutputError
+from bgsub.errors import OutputError, ProcessingError
 from bgsub.sources import quiet_opencv
 
 import cv2  # noqa: E402,I100 (bgsub.sources sets FFmpeg's log level before cv2 starts FFmpeg)
@@ -198,6 +199,21 @@ class _VideoFile:
         except OSError as err:
             raise OutputError(f"{self.path}: cannot move the finished video here "
                               f"({err.strerror}); it is at {self._temp}") from None
+        # OpenCV's writer reports no failed write; a disk that filled up is the likely cause.
+        if _free_bytes(self.path.parent) < _DISK_FULL_BYTES:
+            raise ProcessingError(f"{self.path}: the disk is full; the video is probably cut "
+                                  f"short of the {self.frames_written} frames written to it")
+
+
+#: Less free space than this after a video is finished means its last writes failed.
+_DISK_FULL_BYTES = 64 * 1024
+
+
+def _free_bytes(folder: Path) -> int:
+    try:
+        return shutil.disk_usage(folder).free
+    except OSError:
+        return _DISK_FULL_BYTES  # unknown: assume it was fine
 
 
 def _even(image: np.ndarray) -> np.ndarray:

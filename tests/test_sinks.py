@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from bgsub import sinks
-from bgsub.errors import OutputError
+from bgsub.errors import OutputError, ProcessingError
 from bgsub.sinks import VideoSink, VisSink, open_mask_sink, process, render_overlay
 
 W, H = 48, 32
@@ -255,6 +255,13 @@ def test_video_sink_keeps_the_last_column_and_row_of_an_odd_size(tmp_path):
     (frame,) = _read_video(tmp_path / "p.mkv")
     assert frame.shape == (H + 2, W + 2, 3)
     np.testing.assert_array_equal(frame[:H + 1, :W + 1], picture)  # FFV1: exact
+
+
+def test_a_full_disk_is_reported_when_the_video_is_finished(tmp_path, monkeypatch):
+    monkeypatch.setattr(sinks, "_free_bytes", lambda folder: 0)
+    with pytest.raises(ProcessingError, match="disk is full"):
+        with open_mask_sink(tmp_path / "m.mkv", width=W, height=H, fps=20) as sink:
+            sink.write(_masks(1)[0])
 
 
 def test_video_sink_blanks_keep_the_video_in_step(tmp_path):

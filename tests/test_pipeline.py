@@ -150,6 +150,8 @@ def test_engines_registered_with_documented_params():
     ("grbm", {"fg_alpha": float("nan")}, "'fg_alpha' must be at least 0"),
     ("compensated", {"close": -1}, "'close' must be at least 0"),
     ("compensated", {"max_corners": 0}, "'max_corners' must be at least 1"),
+    ("compensated", {"lk_window": 100_000}, "'lk_window' must be at most 255"),
+    ("mog2", {"history": 10**11}, "'history' is too large"),  # OpenCV takes a C int
 ])
 def test_out_of_range_parameters_are_refused_when_the_engine_is_made(name, params, words):
     with pytest.raises(InputError, match=words):

@@ -73,6 +73,9 @@ GT_BACKGROUND = 0
 GT_UNKNOWN = 170
 GT_FOREGROUND = 255
 
+#: Longest scene: its camera path is computed up front (a few hundred bytes per frame).
+MAX_FRAMES = 100_000
+
 _JPEG_QUALITY = 95
 _DEFAULT_WARMUP = 24
 #: Object speed relative to the view, px/frame, and radius as a fraction of min(width, height).
@@ -138,6 +141,8 @@ class SceneSpec:
                              "dimensions (video codecs need it)")
         if self.n_frames < 2:
             raise InputError(f"a scene needs at least 2 frames, not {self.n_frames}")
+        if self.n_frames > MAX_FRAMES:
+            raise InputError(f"a scene has at most {MAX_FRAMES} frames, not {self.n_frames}")
         if self.n_objects is not None and not 0 <= self.n_objects <= 16:
             raise InputError(f"n_objects must be in 0..16, not {self.n_objects}")
         if self.warmup is not None and not 0 <= self.warmup <= self.n_frames - 1:

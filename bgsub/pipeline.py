@@ -583,6 +583,12 @@ class GrbmEngine(MovingCameraEngine):
 
     def _motion(self, prev_gray: np.ndarray, gray: np.ndarray,
                 prior: Optional[np.ndarray]) -> MotionResult:
+        patch = int(getattr(self.model, "patch_size", 0) or 0)
+        if min(gray.shape) < patch:
+            # Every frame would fall back to "no correspondences": a model for other footage.
+            h, w = gray.shape
+            raise InputError(f"frames of {w}x{h} (working size) are smaller than the model's "
+                             f"{patch}x{patch} patches")
         flow, motion, support = self._read(prev_gray, gray, prior, self.finest)
         finest = self.finest
         # Low support at the final level means the model cannot read it (motion blur, heavy

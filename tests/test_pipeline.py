@@ -158,6 +158,18 @@ def test_out_of_range_parameters_are_refused_when_the_engine_is_made(name, param
         create_engine(name, **params)
 
 
+def test_frames_smaller_than_the_models_patches_are_refused():
+    from bgsub.rbm import GatedRBM
+
+    model = GatedRBM.create(patch_size=41, n_factors=4, n_hidden=5,
+                            rng=np.random.default_rng(0))
+    eng = create_engine("grbm", model=model)
+    frame = np.random.default_rng(1).integers(0, 255, (32, 64), dtype=np.uint8)
+    eng.apply(frame)
+    with pytest.raises(InputError, match="smaller than the model's 41x41 patches"):
+        eng.apply(frame)
+
+
 def test_parameters_at_their_bounds_are_accepted():
     create_engine("grbm", alpha=1.0, fg_alpha=0.0, close=0, fill_holes=0, search=0)
 

@@ -85,6 +85,19 @@ def _check_writable_folder(folder: Path, output: Path) -> None:
         raise OutputError(f"{output}: cannot write in the folder {folder} (permission denied)")
 
 
+def check_file_output(path: PathLike, *, overwrite: bool = False) -> Path:
+    """Check that a file (a report, a model) can be written at ``path``; return it as a
+    :class:`Path`. :class:`OutputError` when it is a folder, exists (without ``overwrite``),
+    or its folder is missing or read-only. Nothing is written."""
+    output = Path(path)
+    if output.is_dir():
+        raise OutputError(f"{output}: is a folder; give a file name")
+    if output.exists() and not overwrite:
+        raise OutputError(f"{output}: already exists (use --overwrite to replace it)")
+    _check_writable_folder(output.parent if str(output.parent) else Path("."), output)
+    return output
+
+
 def check_video_output(path: PathLike, *, overwrite: bool = False,
                        codecs: Optional[dict] = None) -> Path:
     """Check that a video can be written at ``path``; return it as a :class:`Path`.
@@ -100,10 +113,7 @@ def check_video_output(path: PathLike, *, overwrite: bool = False,
         raise OutputError(f"{output}: cannot write a video with this extension (use {known})")
     if output.is_dir():
         raise OutputError(f"{output}: is a folder, not a video file")
-    if output.exists() and not overwrite:
-        raise OutputError(f"{output}: already exists (use --overwrite to replace it)")
-    _check_writable_folder(output.parent if str(output.parent) else Path("."), output)
-    return output
+    return check_file_output(output, overwrite=overwrite)
 
 
 def check_mask_output(path: PathLike, *, overwrite: bool = False) -> Path:

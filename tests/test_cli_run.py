@@ -49,9 +49,12 @@ class _Interrupting(_FrameDiff):
 
     def apply(self, image, fgmask=None, learning_rate=-1.0):
         if self.seen == self.at:
-            raise KeyboardInterrupt
+            self._stop()
         self.seen += 1
         return super().apply(image)
+
+    def _stop(self) -> None:
+        raise KeyboardInterrupt
 
 
 class _Drawing(_FrameDiff):
@@ -77,18 +80,11 @@ register_engine("_test_diff", "test: frame difference",
                 params={"threshold": Param(30, "gray level change")})(_FrameDiff)
 register_engine("_test_interrupt", "test: Ctrl-C at a frame",
                 params={"at": Param(5, "frame")})(_Interrupting)
-class _Killed(_FrameDiff):
+class _Killed(_Interrupting):
     """Sends the process SIGTERM (as `kill` does) while frame number ``at`` is processed."""
 
-    def __init__(self, at: int) -> None:
-        super().__init__(30)
-        self.at, self.seen = at, 0
-
-    def apply(self, image, fgmask=None, learning_rate=-1.0):
-        if self.seen == self.at:
-            os.kill(os.getpid(), signal.SIGTERM)
-        self.seen += 1
-        return super().apply(image)
+    def _stop(self) -> None:
+        os.kill(os.getpid(), signal.SIGTERM)
 
 
 register_engine("_test_killed", "test: SIGTERM at a frame",

@@ -148,33 +148,6 @@ def _umask() -> int:
     return mask
 
 
-def check_output_file(path: PathLike, *, overwrite: bool = False) -> Path:
-    """Refuse an output file that cannot be written, before any work is done.
-
-    Raises :class:`OutputError` when ``path`` is a folder, exists (without ``overwrite``), or
-    its folder is missing or not writable (read-only file system or no permission). Nothing is
-    written; a full disk only shows when writing.
-    """
-    p = Path(path)
-    if p.is_dir():
-        raise OutputError(f"{p}: is a folder, not a file")
-    if p.exists() and not overwrite:
-        raise OutputError(f"output exists (use --overwrite to replace it): {p}")
-    folder = p.parent
-    if not folder.is_dir():
-        raise OutputError(f"cannot write {p}: folder {folder} does not exist")
-    if not os.access(folder, os.W_OK | os.X_OK):
-        raise OutputError(f"cannot write {p}: folder {folder} is {_unwritable_reason(folder)}")
-    return p
-
-
-def _unwritable_reason(folder: Path) -> str:
-    read_only = getattr(os, "ST_RDONLY", None)  # POSIX only
-    if read_only is not None and os.statvfs(folder).f_flag & read_only:
-        return "on a read-only file system"
-    return "not writable (permission denied)"
-
-
 def _make_color_wheel() -> np.ndarray:
     """The Middlebury colour wheel: (55, 3) float64 RGB in [0, 255].
 
@@ -479,7 +452,6 @@ __all__: Sequence[str] = (
     "flow_picture",
     "read_image",
     "check_image_file",
-    "check_output_file",
     "write_image",
     "endpoint_error",
     "within",

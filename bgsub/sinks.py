@@ -82,7 +82,11 @@ def _check_writable_folder(folder: Path, output: Path) -> None:
     if not folder.is_dir():
         raise OutputError(f"{output}: the folder {folder} does not exist")
     if not os.access(folder, os.W_OK | os.X_OK):
-        raise OutputError(f"{output}: cannot write in the folder {folder} (permission denied)")
+        read_only = getattr(os, "ST_RDONLY", None)  # POSIX only
+        reason = ("on a read-only file system"
+                  if read_only is not None and os.statvfs(folder).f_flag & read_only
+                  else "not writable (permission denied)")
+        raise OutputError(f"{output}: cannot write there, the folder {folder} is {reason}")
 
 
 def check_file_output(path: PathLike, *, overwrite: bool = False) -> Path:

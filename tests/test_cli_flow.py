@@ -219,7 +219,6 @@ def test_folder_given_as_an_image(capsys, pair, tmp_path):
     assert "is a folder, not an image file" in err
 
 
-@pytest.mark.xfail(reason="rbm loader fix pending", strict=False)
 def test_npy_file_as_model(capsys, pair, tmp_path):
     model = tmp_path / "plain.npy"
     np.save(model, np.zeros(3))

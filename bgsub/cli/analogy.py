@@ -11,7 +11,7 @@ from bgsub.errors import InputError, OutputError
 # --zoom enlarges a patch-sized result for viewing (13 px x 64 = 832 px); far more only costs
 # memory (--zoom 100000 asked for terabytes). The side limit also bounds zoomed large images.
 MAX_ZOOM = 64
-MAX_OUTPUT_SIDE = 16384
+MAX_OUTPUT_SIDE = 16384  # bgsub.sources.MAX_SIDE (not imported: it would load cv2 for --help)
 
 _DESCRIPTION = """\
 Make an analogy with a gated RBM: infer the mapping units from the pair (X, Y) -- how X moved
@@ -90,12 +90,12 @@ def _check_output(args: argparse.Namespace) -> None:
     """Refuse an output that would replace an input or cannot be written, before any work."""
     import cv2
 
-    from bgsub.flowio import check_output_file
+    from bgsub.sinks import check_file_output
     from bgsub.rbm import SHIPPED_MODELS
 
     model = [] if args.model in SHIPPED_MODELS else [args.model]
     check_distinct([args.x, args.y, args.x2] + model, [("-o", args.output)])
-    check_output_file(args.output, overwrite=args.overwrite)
+    check_file_output(args.output, overwrite=args.overwrite)
     if not cv2.haveImageWriter(args.output):  # decided by the extension alone
         raise OutputError(f"-o: cannot write an image with this extension: {args.output} "
                           "(use .png, .jpg, .bmp, .tif, ...)")

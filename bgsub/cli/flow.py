@@ -162,19 +162,19 @@ def _estimate(frame1: np.ndarray, frame2: np.ndarray, model: Any, args: argparse
 
 
 def _check_pair_outputs(args: argparse.Namespace) -> None:
-    from bgsub.flowio import check_output_file
+    from bgsub.sinks import check_file_output
 
     check_distinct(_input_paths(args), [("-o", args.output), ("--vis", args.vis)])
     out = Path(args.output)
     if out.suffix.lower() != ".flo":
         raise OutputError(f"-o takes a .flo file for an image pair, not {out} (use --vis for a picture)")
-    check_output_file(out, overwrite=args.overwrite)
+    check_file_output(out, overwrite=args.overwrite)
     if args.vis is not None:
         vis = Path(args.vis)
         if vis.suffix.lower() not in _PICTURE_SUFFIXES:
             raise OutputError(f"--vis: cannot write a picture with this extension: {vis} "
                               f"(use {', '.join(sorted(_PICTURE_SUFFIXES))})")
-        check_output_file(vis, overwrite=args.overwrite)
+        check_file_output(vis, overwrite=args.overwrite)
 
 
 def _run_pair(args: argparse.Namespace, model: Any) -> int:

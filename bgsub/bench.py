@@ -86,7 +86,7 @@ class BenchResult:
     """Speed of one method.
 
     ``fps_runs`` holds one figure per repeat; ``fps`` is their median. With memory measurement
-    on, each method runs in its own forked child process: ``peak_rss_mib`` is that child's peak
+    on, each method runs in its own child process: ``peak_rss_mib`` is that child's peak
     resident memory (``ru_maxrss``; it includes the interpreter and the clip, but not library
     pages the child never touched) and ``rss_growth_mib`` how much that peak rose above the
     child's resident memory at its start, i.e. what the method itself needed. ``None`` when
@@ -316,7 +316,7 @@ def _peak_rss_mib() -> float:
 
 def _child(conn: Any, method: str, params: Mapping[str, Any], frames: np.ndarray,
            repeats: int) -> None:
-    """Body of the forked child: run one method, send back fps and memory figures."""
+    """Body of the child process: run one method, send back fps and memory figures."""
     try:
         start = _peak_rss_mib()
         runs = _run_method(method, params, frames, repeats)
@@ -329,8 +329,11 @@ def _child(conn: Any, method: str, params: Mapping[str, Any], frames: np.ndarray
 
 
 def _run_in_child(method: str, params: Mapping[str, Any], frames: np.ndarray, repeats: int):
-    """Run one method in a forked child so its peak memory is its own."""
-    ctx = multiprocessing.get_context("fork")
+    """Run one method in a child process so its peak memory is its own."""
+    # "spawn", a fresh interpreter, not "fork": a child forked after OpenCV started its worker
+    # threads inherits the thread pool's lock but not its threads, and cv2.setNumThreads()
+    # (limited_threads, every grbm/compensated frame) then waits on it forever.
+    ctx = multiprocessing.get_context("spawn")
     parent, child = ctx.Pipe(duplex=False)
     proc = ctx.Process(target=_child, args=(child, method, params, frames, repeats))
     proc.start()
@@ -366,7 +369,7 @@ def bench_methods(
     frames : timed frames per run (one more, untimed, warms each engine up).
     repeats : runs per method; the median fps is reported.
     params : ``{method: {param: value}}`` engine parameters.
-    memory : measure each method's peak RSS in its own forked child process (Linux/macOS).
+    memory : measure each method's peak RSS in its own child process (Linux/macOS).
     seed : seed of the generated clip.
     progress : optional ``callable(iterable, total=, desc=)`` wrapping the method loop (a bar).
 
@@ -396,13 +399,13 @@ def bench_methods(
         width=width, height=height, frames=frames, repeats=repeats, clip=description,
         machine=machine_info(),
     )
-    use_fork = memory and "fork" in multiprocessing.get_all_start_methods()
+    in_child = memory and sys.platform != "win32"  # ru_maxrss is POSIX
     iterator = progress(names, total=len(names), desc="bench") if progress else names
     for name in iterator:
         method_params = params.get(name, {})
         peak: Optional[float] = None
         growth: Optional[float] = None
-        if use_fork:
+        if in_child:
             runs, (peak, growth) = _run_in_child(name, method_params, clip, repeats)
         else:
             runs = _run_method(name, method_params, clip, repeats)

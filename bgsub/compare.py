@@ -522,6 +522,12 @@ def _run_job(job: _Job, methods: Sequence[str], params: Mapping[str, Mapping[str
         scored: List[int] = []
         n_frames = 0
 
+        if job.out is not None and (video or masks != "none"):
+            # A dataset root's per-sequence folder (video sinks need their folder to exist).
+            try:
+                job.out.mkdir(parents=True, exist_ok=True)
+            except OSError as err:
+                raise OutputError(f"cannot create {job.out}: {err.strerror}") from None
         with contextlib.ExitStack() as stack:
             sinks = _open_mask_sinks(stack, job.out, methods, masks, size=mask_size,
                                      fps=info.fps, overwrite=overwrite)

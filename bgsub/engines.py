@@ -66,6 +66,9 @@ class Engine(ABC):
         return self.get_background_image()
 
 
+_C_INT_MAX = 2**31 - 1
+
+
 @dataclass(frozen=True)
 class Param:
     """One tunable parameter of an engine: its default (which also fixes its type) and meaning.
@@ -108,6 +111,9 @@ class Param:
             raise InputError(f"parameter {name!r} must be one of {allowed}, not {value!r}")
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             return
+        if isinstance(value, int) and not -_C_INT_MAX <= value <= _C_INT_MAX:
+            # Engines hand their integers to OpenCV, whose C ints cannot hold more.
+            raise InputError(f"parameter {name!r} is too large: {value}")
         if self.low is not None and not value >= self.low:
             raise InputError(f"parameter {name!r} must be at least {self.low:g}, not {value!r}")
         if self.high is not None and not value <= self.high:

@@ -744,6 +744,11 @@ def evaluate_sequence(
         notes.append(f"temporal ROI {gt.temporal_roi[0]}-{gt.temporal_roi[1]}")
     if missing:
         notes.append(f"{len(missing)} missing frames counted as background")
+    gaps = numbers[-1] - numbers[0] + 1 - len(numbers)
+    if gaps and frames is None:
+        # Sparse ground truth (labels for some frames only) is legitimate, but say it: the
+        # range in the summary would otherwise read as every frame of it.
+        notes.append(f"no ground truth for {gaps} of the frames in that range")
     rel_name = name or gt.path.resolve().name
     return SequenceResult(
         name=rel_name,

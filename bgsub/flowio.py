@@ -114,23 +114,38 @@ def write_flo(path: PathLike, flow: np.ndarray, *, overwrite: bool = False) -> P
     data[~np.isfinite(data).all(axis=2)] = UNKNOWN_VALUE
     height, width = data.shape[:2]
     header = FLO_TAG.astype("<f4").tobytes() + np.array([width, height], "<i4").tobytes()
-    directory = p.parent if str(p.parent) else Path(".")
+    _write_atomically(p, header + data.tobytes(), what="flow file")
+    return p
+
+
+def _write_atomically(path: Path, data: bytes, *, what: str) -> None:
+    """Write ``data`` under a temporary name in the same folder, then rename it to ``path``.
+
+    A failed write (disk full, read-only folder) never leaves a partial file, nor destroys the
+    file it was to replace; the error names the system's reason. The file gets the usual
+    permissions (``0o666`` less the umask), not the ``0o600`` of a temporary file.
+    """
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".part", dir=directory)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
     except OSError as err:
-        raise OutputError(f"cannot write flow file {p}: {err.strerror or err}") from None
+        raise OutputError(f"cannot write {what} {path}: {err.strerror or err}") from None
     try:
         with os.fdopen(fd, "wb") as fh:
-            fh.write(header)
-            fh.write(data.tobytes())
-        os.replace(tmp, p)
+            fh.write(data)
+        os.chmod(tmp, 0o666 & ~_umask())
+        os.replace(tmp, path)
     except OSError as err:
         try:
             os.unlink(tmp)
         except OSError:
             pass
-        raise OutputError(f"cannot write flow file {p}: {err.strerror or err}") from None
-    return p
+        raise OutputError(f"cannot write {what} {path}: {err.strerror or err}") from None
+
+
+def _umask() -> int:
+    mask = os.umask(0)  # the only way to read the umask is to set it (briefly) and restore it
+    os.umask(mask)
+    return mask
 
 
 def _make_color_wheel() -> np.ndarray:
@@ -352,14 +367,47 @@ def read_image(path: PathLike) -> np.ndarray:
     InputError
         The file is missing or not an image OpenCV can decode.
     """
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"image not found: {p}" if not p.exists() else f"not an image file: {p}")
+    p = check_image_file(path)
     data = np.fromfile(str(p), dtype=np.uint8)  # np.fromfile + imdecode: any path encoding
     image = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
     if image is None:
         raise InputError(f"cannot read image (not a format OpenCV decodes, or corrupt): {p}")
     return image
+
+
+def check_image_file(path: PathLike) -> Path:
+    """``path`` as a :class:`Path` if it is an existing file, else an :class:`InputError` that
+    says what it is instead (missing, a folder, a device...)."""
+    p = Path(path)
+    if p.is_dir():
+        raise InputError(f"{p}: is a folder, not an image file")
+    if not p.exists():
+        raise InputError(f"image not found: {p}")
+    if not p.is_file():
+        raise InputError(f"not an image file: {p}")
+    return p
+
+
+def write_image(path: PathLike, picture: np.ndarray) -> Path:
+    """Write a picture (gray or BGR uint8) in the format its extension names, atomically.
+
+    Encoded in memory and written by Python, so a failure gives the system's reason (e.g. "No
+    space left on device") instead of a codec library's message on stderr.
+
+    Raises
+    ------
+    OutputError
+        OpenCV cannot encode this extension, or the file cannot be written.
+    """
+    p = Path(path)
+    try:
+        ok, data = cv2.imencode(p.suffix.lower(), picture)
+    except cv2.error:
+        ok = False
+    if not ok:
+        raise OutputError(f"cannot encode a picture as {p.suffix or '(no extension)'}: {p}")
+    _write_atomically(p, data.tobytes(), what="image")
+    return p
 
 
 def endpoint_error(estimate: np.ndarray, truth: np.ndarray) -> np.ndarray:
@@ -403,6 +451,8 @@ __all__: Sequence[str] = (
     "arrow_grid",
     "flow_picture",
     "read_image",
+    "check_image_file",
+    "write_image",
     "endpoint_error",
     "within",
 )

@@ -583,6 +583,12 @@ class GrbmEngine(MovingCameraEngine):
 
     def _motion(self, prev_gray: np.ndarray, gray: np.ndarray,
                 prior: Optional[np.ndarray]) -> MotionResult:
+        patch = int(getattr(self.model, "patch_size", 0) or 0)
+        if min(gray.shape) < patch:
+            # Every frame would fall back to "no correspondences": a model for other footage.
+            h, w = gray.shape
+            raise InputError(f"frames of {w}x{h} (working size) are smaller than the model's "
+                             f"{patch}x{patch} patches")
         flow, motion, support = self._read(prev_gray, gray, prior, self.finest)
         finest = self.finest
         # Low support at the final level means the model cannot read it (motion blur, heavy
@@ -627,7 +633,8 @@ _COMMON = {
     "k_sigma": Param(2.0, "foreground beyond this many background standard deviations ...", low=0),
     "min_diff": Param(10.0, "... and this many gray levels (0-255)", low=0),
     "envelope": Param(1, "a pixel is compared with the background's min/max over this "
-                         "neighbourhood (3 tolerates a 1-px misregistration)", low=1),
+                         "neighbourhood (3 tolerates a 1-px misregistration)",
+                      low=1, high=31),
     "min_age": Param(1, "frames of history a pixel needs before it can be foreground", low=0),
     "flow_boost": Param(0.8, "where local motion violates the camera's, the background "
                              "difference is multiplied by up to 1 + this", low=0),
@@ -756,9 +763,9 @@ def _make_grbm(**kwargs: Any) -> Engine:
     "moving camera: Lucas-Kanade corner tracks + RANSAC camera motion + compensated background "
     "model (classical baseline of grbm)",
     params={
-        "max_corners": Param(400, "Shi-Tomasi corners tracked per frame", low=1),
-        "lk_window": Param(21, "Lucas-Kanade window side (px)", low=3),
-        "lk_levels": Param(3, "Lucas-Kanade pyramid levels above the base", low=0),
+        "max_corners": Param(400, "Shi-Tomasi corners tracked per frame", low=1, high=100_000),
+        "lk_window": Param(21, "Lucas-Kanade window side (px)", low=3, high=255),
+        "lk_levels": Param(3, "Lucas-Kanade pyramid levels above the base", low=0, high=10),
         "fb_threshold": Param(1.0, "forward-backward tracking error (px) above which a track "
                                    "is dropped", above=0),
         **_COMMON,

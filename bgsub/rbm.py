@@ -338,7 +338,11 @@ class GatedRBM:
         if not path.is_file():
             raise ModelError(f"model file {path} does not exist")
         try:
-            with np.load(path, allow_pickle=False) as npz:
+            loaded = np.load(path, allow_pickle=False)
+            if not isinstance(loaded, np.lib.npyio.NpzFile):  # a plain .npy array
+                raise ModelError(f"{path} is not a readable bgsub model (a single .npy array, "
+                                 "not an .npz archive)")
+            with loaded as npz:
                 data = {name: npz[name] for name in npz.files}
         except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as err:
             # numpy's own message for a non-npz file suggests loading it with allow_pickle, which

@@ -73,6 +73,9 @@ GT_BACKGROUND = 0
 GT_UNKNOWN = 170
 GT_FOREGROUND = 255
 
+#: Longest scene: its camera path is computed up front (a few hundred bytes per frame).
+MAX_FRAMES = 100_000
+
 _JPEG_QUALITY = 95
 _DEFAULT_WARMUP = 24
 #: Object speed relative to the view, px/frame, and radius as a fraction of min(width, height).
@@ -131,8 +134,15 @@ class SceneSpec:
             raise InputError(f"scene size {self.width}x{self.height} is too small (minimum 64x48)")
         if self.width > 4096 or self.height > 4096:
             raise InputError(f"scene size {self.width}x{self.height} is too large (max 4096)")
+        if self.width % 2 or self.height % 2:
+            # The scene's video would be padded to even by the writer and no longer match its
+            # frames and ground truth.
+            raise InputError(f"scene size {self.width}x{self.height} must be even in both "
+                             "dimensions (video codecs need it)")
         if self.n_frames < 2:
             raise InputError(f"a scene needs at least 2 frames, not {self.n_frames}")
+        if self.n_frames > MAX_FRAMES:
+            raise InputError(f"a scene has at most {MAX_FRAMES} frames, not {self.n_frames}")
         if self.n_objects is not None and not 0 <= self.n_objects <= 16:
             raise InputError(f"n_objects must be in 0..16, not {self.n_objects}")
         if self.warmup is not None and not 0 <= self.warmup <= self.n_frames - 1:

@@ -23,6 +23,7 @@ import contextlib
 import math
 import os
 import re
+import shutil
 import sys
 import time
 from collections import Counter
@@ -33,7 +34,7 @@ from typing import Callable, Iterable, Optional, Tuple, Union
 
 import numpy as np
 
-from bgsub.errors import OutputError
+from bgsub.errors import OutputError, ProcessingError
 from bgsub.sources import quiet_opencv
 
 import cv2  # noqa: E402,I100 (bgsub.sources sets FFmpeg's log level before cv2 starts FFmpeg)
@@ -81,7 +82,24 @@ def _check_writable_folder(folder: Path, output: Path) -> None:
     if not folder.is_dir():
         raise OutputError(f"{output}: the folder {folder} does not exist")
     if not os.access(folder, os.W_OK | os.X_OK):
-        raise OutputError(f"{output}: cannot write in the folder {folder} (permission denied)")
+        read_only = getattr(os, "ST_RDONLY", None)  # POSIX only
+        reason = ("on a read-only file system"
+                  if read_only is not None and os.statvfs(folder).f_flag & read_only
+                  else "not writable (permission denied)")
+        raise OutputError(f"{output}: cannot write there, the folder {folder} is {reason}")
+
+
+def check_file_output(path: PathLike, *, overwrite: bool = False) -> Path:
+    """Check that a file (a report, a model) can be written at ``path``; return it as a
+    :class:`Path`. :class:`OutputError` when it is a folder, exists (without ``overwrite``),
+    or its folder is missing or read-only. Nothing is written."""
+    output = Path(path)
+    if output.is_dir():
+        raise OutputError(f"{output}: is a folder; give a file name")
+    if output.exists() and not overwrite:
+        raise OutputError(f"{output}: already exists (use --overwrite to replace it)")
+    _check_writable_folder(output.parent if str(output.parent) else Path("."), output)
+    return output
 
 
 def check_video_output(path: PathLike, *, overwrite: bool = False,
@@ -99,10 +117,7 @@ def check_video_output(path: PathLike, *, overwrite: bool = False,
         raise OutputError(f"{output}: cannot write a video with this extension (use {known})")
     if output.is_dir():
         raise OutputError(f"{output}: is a folder, not a video file")
-    if output.exists() and not overwrite:
-        raise OutputError(f"{output}: already exists (use --overwrite to replace it)")
-    _check_writable_folder(output.parent if str(output.parent) else Path("."), output)
-    return output
+    return check_file_output(output, overwrite=overwrite)
 
 
 def check_mask_output(path: PathLike, *, overwrite: bool = False) -> Path:
@@ -162,10 +177,13 @@ class _VideoFile:
         except OSError as err:
             raise OutputError(f"{self.path}: cannot replace {self._temp} ({err.strerror})") \
                 from None
+        # OpenCV's FFmpeg writer silently drops the last column or row of an odd size: open it
+        # one pixel larger and pad each picture (write) so nothing is lost.
+        width, height = int(width), int(height)
         with quiet_opencv():
             writer = cv2.VideoWriter(str(self._temp), cv2.CAP_FFMPEG,
                                      cv2.VideoWriter_fourcc(*self.codec), self.fps,
-                                     (int(width), int(height)), self.is_color)
+                                     (width + width % 2, height + height % 2), self.is_color)
         if not writer.isOpened():
             writer.release()
             with contextlib.suppress(OSError):
@@ -173,11 +191,11 @@ class _VideoFile:
             raise OutputError(f"{self.path}: OpenCV cannot open a {self.codec} video writer "
                               f"for {width}x{height} frames here")
         self._writer = writer
-        self.size = (int(width), int(height))
+        self.size = (width, height)  # of the pictures written; the file's is padded to even
 
     def write(self, image: np.ndarray) -> None:
         assert self._writer is not None, "write() before open()"
-        self._writer.write(image)
+        self._writer.write(_even(image))
         self.frames_written += 1
 
     def close(self) -> None:
@@ -195,6 +213,29 @@ class _VideoFile:
         except OSError as err:
             raise OutputError(f"{self.path}: cannot move the finished video here "
                               f"({err.strerror}); it is at {self._temp}") from None
+        # OpenCV's writer reports no failed write; a disk that filled up is the likely cause.
+        if _free_bytes(self.path.parent) < _DISK_FULL_BYTES:
+            raise ProcessingError(f"{self.path}: the disk is full; the video is probably cut "
+                                  f"short of the {self.frames_written} frames written to it")
+
+
+#: Less free space than this after a video is finished means its last writes failed.
+_DISK_FULL_BYTES = 64 * 1024
+
+
+def _free_bytes(folder: Path) -> int:
+    try:
+        return shutil.disk_usage(folder).free
+    except OSError:
+        return _DISK_FULL_BYTES  # unknown: assume it was fine
+
+
+def _even(image: np.ndarray) -> np.ndarray:
+    """``image`` with its last row / column repeated where its size is odd (see open())."""
+    h, w = image.shape[:2]
+    if h % 2 == 0 and w % 2 == 0:
+        return image
+    return cv2.copyMakeBorder(image, 0, h % 2, 0, w % 2, cv2.BORDER_REPLICATE)
 
 
 def _check_image(image: np.ndarray, *, ndims: Tuple[int, ...], what: str) -> None:
@@ -293,6 +334,12 @@ class MaskVideoSink(MaskSink):
 
     def __init__(self, path: Path, *, width: int, height: int, fps: float) -> None:
         super().__init__(path, width=width, height=height)
+        if width % 2 or height % 2:
+            # A padded or cropped mask would no longer match its frame or its ground truth.
+            raise OutputError(
+                f"{path}: {width}x{height} masks cannot be written to a video (OpenCV's video "
+                f"writer drops the last column or row of an odd size); write them as a folder "
+                f"of PNGs or resize the input to an even size (--width {width - width % 2})")
         codec = MASK_VIDEO_CODECS[path.suffix.lower()]
         self._video = _VideoFile(path, codec=codec, fps=fps, is_color=False)
         self._video.open(width, height)

@@ -318,6 +318,10 @@ def _check_range(start: int, stop: Optional[int], step: int) -> None:
         raise InputError(f"invalid frame range: step must be at least 1, not {step!r}")
 
 
+#: Largest side of a resized frame (8K video is 7680 wide).
+MAX_SIDE = 16384
+
+
 def output_size(width: int, height: int, *, scale: Optional[float] = None,
                 target_width: Optional[int] = None) -> Tuple[int, int]:
     """Size ``(width, height)`` of frames resized by ``scale`` or to ``target_width``.
@@ -329,13 +333,19 @@ def output_size(width: int, height: int, *, scale: Optional[float] = None,
     if scale is not None:
         if not (isinstance(scale, numbers.Real) and math.isfinite(scale) and scale > 0):
             raise InputError(f"invalid scale {scale!r}: it must be a number > 0, e.g. 0.5")
-        return max(1, round(width * scale)), max(1, round(height * scale))
-    if target_width is not None:
+        size = max(1, round(width * scale)), max(1, round(height * scale))
+    elif target_width is not None:
         if not isinstance(target_width, (int, np.integer)) or target_width < 1:
             raise InputError(f"invalid width {target_width!r}: it must be a whole number of "
                              "pixels >= 1")
-        return int(target_width), max(1, round(height * target_width / width))
-    return width, height
+        size = int(target_width), max(1, round(height * target_width / width))
+    else:
+        return width, height
+    if max(size) > MAX_SIDE:
+        # A typo (--scale 1000) would otherwise end in the system killing the process.
+        raise InputError(f"resized frames would be {size[0]}x{size[1]}; the largest side "
+                         f"allowed is {MAX_SIDE} pixels")
+    return size
 
 
 def open_source(path: PathLike, *, start: int = 0, stop: Optional[int] = None, step: int = 1,

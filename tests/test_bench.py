@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -54,6 +56,20 @@ def test_memory_is_measured_per_method() -> None:
     (result,) = report.results
     assert result.peak_rss_mib is not None and result.peak_rss_mib > 0
     assert "peak RSS" in report.to_text()
+
+
+def test_memory_of_a_thread_limited_engine_does_not_hang() -> None:
+    # compensated limits OpenCV's threads every frame; a child forked from a parent whose
+    # OpenCV pool had started waited forever in cv2.setNumThreads. The subprocess's timeout
+    # turns such a hang into a failure; `python -m bgsub` also checks that the spawned
+    # children do not re-run the command.
+    done = subprocess.run(
+        [sys.executable, "-m", "bgsub", "bench", "-m", "compensated", "--size", "64x48",
+         "--frames", "2", "--repeats", "1", "--memory", "--json"],
+        capture_output=True, text=True, timeout=90)
+    assert done.returncode == 0, done.stderr
+    (result,) = json.loads(done.stdout)["results"]
+    assert result["method"] == "compensated" and result["peak_rss_mib"] > 0
 
 
 def test_clip_shape_and_fallback_for_tiny_sizes() -> None:

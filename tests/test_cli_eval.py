@@ -80,6 +80,12 @@ def test_eval_csv_not_overwritten(case, tmp_path, capsys):
     assert target.read_text() == "keep me"
 
 
+def test_eval_csv_given_a_folder_says_so(case, tmp_path, capsys):
+    pred, seq = case
+    assert main(["eval", str(pred), str(seq), "--csv", str(tmp_path), "--overwrite"]) == 2
+    assert "is a folder; give a file name" in capsys.readouterr().err
+
+
 def test_eval_missing_frame_exit_code(case, capsys):
     pred, seq = case
     (pred / "bin000002.png").unlink()

@@ -125,3 +125,103 @@ def test_video_options_refused_for_a_pair(capsys, pair, tmp_path):
     err = _error(capsys, ["flow", str(pair[0]), str(pair[1]), "-o", str(tmp_path / "f.flo"),
                           "--scale", "0.5"])
     assert "--scale" in err
+
+
+# --- refusals before any work: outputs that replace inputs, nonsense numbers, ignored options ---
+
+
+def _video_file(tmp_path, name: str = "clip.avi", size=(80, 120)):
+    """A tiny 3-frame MJPG video of a texture moving right by 2 px per frame."""
+    h, w = size
+    big = _texture(h + 20, w + 20, seed=2)
+    path = tmp_path / name
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 10, (w, h))
+    for k in range(3):
+        writer.write(cv2.cvtColor(big[10:10 + h, 2 * k:2 * k + w], cv2.COLOR_GRAY2BGR))
+    writer.release()
+    return path
+
+
+def test_video_output_may_not_replace_the_input_video(capsys, tmp_path):
+    video = _video_file(tmp_path)
+    before = video.read_bytes()
+    err = _error(capsys, ["flow", str(video), "-o", str(video), "--overwrite"])
+    assert "-o would overwrite an input" in err
+    assert video.read_bytes() == before
+
+
+def test_vis_may_not_replace_an_input_image(capsys, pair, tmp_path):
+    before = pair[0].read_bytes()
+    err = _error(capsys, ["flow", str(pair[0]), str(pair[1]), "-o", str(tmp_path / "f.flo"),
+                          "--vis", str(pair[0]), "--overwrite"])
+    assert "--vis would overwrite an input" in err
+    assert pair[0].read_bytes() == before
+    assert not (tmp_path / "f.flo").exists()
+
+
+@pytest.mark.parametrize("option, value", [
+    ("--max-magnitude", "nan"), ("--max-magnitude", "inf"), ("--max-magnitude", "0"),
+    ("--max-magnitude", "-1"), ("--max-motion", "-5"), ("--max-motion", "nan"),
+    ("--max-motion", "0"), ("--levels", "-1"), ("--levels", "0"),
+])
+def test_pair_refuses_nonsense_numbers(capsys, pair, tmp_path, option, value):
+    out = tmp_path / "f.flo"
+    err = _error(capsys, ["flow", str(pair[0]), str(pair[1]), "-o", str(out),
+                          "--vis", str(tmp_path / "f.png"), option, value])
+    assert option in err and value in err
+    assert not out.exists()
+
+
+def test_video_refuses_nan_max_magnitude(capsys, tmp_path):
+    video, out = _video_file(tmp_path), tmp_path / "flow.avi"
+    err = _error(capsys, ["flow", str(video), "-o", str(out), "--max-magnitude", "nan"])
+    assert "--max-magnitude must be a number above 0" in err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("options", [["--arrows"], ["--arrow-step", "8"], ["--max-magnitude", "5"]])
+def test_pair_picture_options_need_vis(capsys, pair, tmp_path, options):
+    out = tmp_path / "f.flo"
+    err = _error(capsys, ["flow", str(pair[0]), str(pair[1]), "-o", str(out)] + options)
+    assert options[0] in err and "--vis" in err
+    assert not out.exists()
+
+
+@pytest.fixture
+def big_patch_model(tmp_path):
+    """A (random, untrained) model whose 41x41 patches are larger than 32x48 frames."""
+    from bgsub.rbm import GatedRBM
+
+    path = tmp_path / "big.npz"
+    GatedRBM.create(patch_size=41, n_factors=4, n_hidden=2).save(path)
+    return path
+
+
+@pytest.mark.parametrize("mode", ["pair", "video"])
+def test_model_patch_larger_than_the_frames(capsys, tmp_path, big_patch_model, mode):
+    if mode == "pair":
+        frame = tmp_path / "small.png"
+        cv2.imwrite(str(frame), _texture(32, 48))
+        out = tmp_path / "f.flo"
+        argv = ["flow", str(frame), str(frame), "-o", str(out)]
+    else:
+        video, out = _video_file(tmp_path, size=(32, 48)), tmp_path / "flow.avi"
+        argv = ["flow", str(video), "-o", str(out)]
+    err = _error(capsys, argv + ["--model", str(big_patch_model)])
+    assert "48x32, smaller than one 41x41 patch" in err
+    assert not out.exists()
+
+
+def test_folder_given_as_an_image(capsys, pair, tmp_path):
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    err = _error(capsys, ["flow", str(folder), str(pair[1]), "-o", str(tmp_path / "f.flo")])
+    assert "is a folder, not an image file" in err
+
+
+def test_npy_file_as_model(capsys, pair, tmp_path):
+    model = tmp_path / "plain.npy"
+    np.save(model, np.zeros(3))
+    err = _error(capsys, ["flow", str(pair[0]), str(pair[1]), "-o", str(tmp_path / "f.flo"),
+                          "--model", str(model)])
+    assert "npz" in err

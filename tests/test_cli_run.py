@@ -49,9 +49,12 @@ class _Interrupting(_FrameDiff):
 
     def apply(self, image, fgmask=None, learning_rate=-1.0):
         if self.seen == self.at:
-            raise KeyboardInterrupt
+            self._stop()
         self.seen += 1
         return super().apply(image)
+
+    def _stop(self) -> None:
+        raise KeyboardInterrupt
 
 
 class _Drawing(_FrameDiff):
@@ -77,6 +80,15 @@ register_engine("_test_diff", "test: frame difference",
                 params={"threshold": Param(30, "gray level change")})(_FrameDiff)
 register_engine("_test_interrupt", "test: Ctrl-C at a frame",
                 params={"at": Param(5, "frame")})(_Interrupting)
+class _Killed(_Interrupting):
+    """Sends the process SIGTERM (as `kill` does) while frame number ``at`` is processed."""
+
+    def _stop(self) -> None:
+        os.kill(os.getpid(), signal.SIGTERM)
+
+
+register_engine("_test_killed", "test: SIGTERM at a frame",
+                params={"at": Param(5, "frame")})(_Killed)
 register_engine("_test_draw", "test: debug_image and last_status")(_Drawing)
 
 
@@ -210,6 +222,27 @@ def test_ctrl_c_keeps_valid_partial_outputs_and_exits_130(tmp_path, clip, capsys
     assert len(_video_frames(tmp_path / "v.mp4")) == 7
     assert "interrupted" in err and "valid" in err and "7 frames" in err
     assert not list(tmp_path.glob(".*partial*"))
+
+
+def test_sigterm_keeps_valid_partial_outputs_like_ctrl_c(tmp_path, clip, capsys):
+    before = signal.getsignal(signal.SIGTERM)
+    code, err = _run(capsys, clip, "-o", tmp_path / "m.mkv", "--vis", tmp_path / "v.mp4",
+                     "-m", "_test_killed", "--param", "at=7")
+    assert code == 128 + signal.SIGTERM
+    assert len(_video_frames(tmp_path / "m.mkv")) == 7
+    assert len(_video_frames(tmp_path / "v.mp4")) == 7
+    assert "SIGTERM" in err and "valid" in err
+    assert not list(tmp_path.glob(".*partial*"))
+    assert signal.getsignal(signal.SIGTERM) == before  # restored after the command
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs /dev/full (Linux)")
+def test_a_full_stdout_is_one_error_line():
+    with open("/dev/full", "w") as full:
+        done = subprocess.run([sys.executable, "-m", "bgsub", "methods"], stdout=full,
+                              stderr=subprocess.PIPE, text=True, timeout=60)
+    assert done.returncode == 1
+    assert done.stderr.strip() == "bgsub: error: No space left on device"
 
 
 def test_quiet_prints_nothing(tmp_path, clip, capsys):

@@ -200,6 +200,19 @@ def test_dataset_category_layout_and_outputs_per_sequence(tmp_path: Path) -> Non
     assert len(list((out / "cameraJitter" / "traffic" / "framediff").glob("bin*.png"))) == 3
 
 
+@pytest.mark.parametrize("masks, video, wanted", [
+    ("mkv", False, "framediff.mkv"), ("none", True, "side_by_side.mp4")])
+def test_dataset_outputs_without_png_masks_get_their_folder(tmp_path: Path, masks, video,
+                                                            wanted) -> None:
+    # Only the PNG mask sink used to create a sequence's folder.
+    root = tmp_path / "data"
+    write_sequence(root / "famA_one", seed=0)
+    out = tmp_path / "out"
+    compare_methods(root, methods=["framediff"], report_dir=out, max_frames=3, masks=masks,
+                    video=video)
+    assert (out / "famA_one" / wanted).is_file()
+
+
 def test_roi_bmp_used_for_a_sequence_ignored_for_a_dataset(tmp_path: Path) -> None:
     roi = np.zeros((H, W), np.uint8)
     roi[:, : W // 2] = 255

@@ -104,6 +104,16 @@ def test_without_temporal_roi_every_gt_frame_counts(tmp_path):
     assert evaluate_sequence(pred, gt).counts == Counts(tp=3, fp=23, fn=3, tn=8)
 
 
+def test_sparse_ground_truth_is_scored_where_it_exists_and_said_so(tmp_path):
+    zeros, ones = np.zeros((4, 5), np.uint8), np.full((4, 5), 255, np.uint8)
+    gt = write_sequence(tmp_path / "seq", {1: GT2, 3: GT2, 4: GT2})  # no label for frame 2
+    pred = write_bins(tmp_path / "pred", {1: PRED2, 2: ones, 3: PRED2, 4: PRED2})
+    result = evaluate_sequence(pred, gt)
+    assert result.n_frames == 3 and (result.first_frame, result.last_frame) == (1, 4)
+    assert result.counts == Counts(tp=9, fp=9, fn=9, tn=24)  # frame 2's 20 FP not counted
+    assert "no ground truth for 1 of the frames in that range" in result.notes
+
+
 def test_frame_restrictions(hand_case):
     pred, gt = hand_case
     only3 = evaluate_sequence(pred, gt, first_frame=3)

@@ -150,10 +150,24 @@ def test_engines_registered_with_documented_params():
     ("grbm", {"fg_alpha": float("nan")}, "'fg_alpha' must be at least 0"),
     ("compensated", {"close": -1}, "'close' must be at least 0"),
     ("compensated", {"max_corners": 0}, "'max_corners' must be at least 1"),
+    ("compensated", {"lk_window": 100_000}, "'lk_window' must be at most 255"),
+    ("mog2", {"history": 10**11}, "'history' is too large"),  # OpenCV takes a C int
 ])
 def test_out_of_range_parameters_are_refused_when_the_engine_is_made(name, params, words):
     with pytest.raises(InputError, match=words):
         create_engine(name, **params)
+
+
+def test_frames_smaller_than_the_models_patches_are_refused():
+    from bgsub.rbm import GatedRBM
+
+    model = GatedRBM.create(patch_size=41, n_factors=4, n_hidden=5,
+                            rng=np.random.default_rng(0))
+    eng = create_engine("grbm", model=model)
+    frame = np.random.default_rng(1).integers(0, 255, (32, 64), dtype=np.uint8)
+    eng.apply(frame)
+    with pytest.raises(InputError, match="smaller than the model's 41x41 patches"):
+        eng.apply(frame)
 
 
 def test_parameters_at_their_bounds_are_accepted():

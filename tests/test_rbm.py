@@ -159,6 +159,13 @@ def test_pickled_object_array_is_refused(tmp_path):
         GatedRBM.load(path)
 
 
+def test_plain_npy_array_is_refused_with_its_reason(tmp_path):
+    path = tmp_path / "weights.npy"
+    np.save(path, np.zeros((169, 200), np.float32))
+    with pytest.raises(ModelError, match="single .npy array"):
+        GatedRBM.load(path)
+
+
 def test_load_model_by_path_and_unknown_name(tmp_path):
     path = _tiny().save(tmp_path / "m.npz")
     assert load_model(str(path)).n_factors == 4

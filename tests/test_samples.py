@@ -106,6 +106,17 @@ def test_default_scene_has_a_cdnet_warmup():
         SceneSpec("static", warmup=120)
 
 
+def test_absurd_scene_lengths_are_refused():
+    with pytest.raises(InputError, match="at most"):
+        SceneSpec("pan", n_frames=10**11)
+
+
+def test_odd_scene_sizes_are_refused():
+    # Its video would be padded to even and no longer match its frames and ground truth.
+    with pytest.raises(InputError, match="even"):
+        SceneSpec("pan", width=101, height=76)
+
+
 def test_objects_move_enter_and_leave():
     # Small view, long clip: the objects cross it completely.
     spec = SceneSpec("pan", seed=0, n_frames=150, n_objects=3, width=96, height=72)
@@ -255,7 +266,8 @@ def test_cli_refuses_existing_output(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("bad", [["--size", "320by240"], ["--size", "10x10"],
-                                 ["--category", "moving"], ["--frames", "1"]])
+                                 ["--category", "moving"], ["--frames", "1"],
+                                 ["--category", ","], ["--size", "101x77"]])
 def test_cli_bad_options_exit_2_with_one_line(tmp_path, capsys, bad):
     assert main(["samples", str(tmp_path / "x")] + bad) == 2
     err = capsys.readouterr().err

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from bgsub import sinks
-from bgsub.errors import OutputError
+from bgsub.errors import OutputError, ProcessingError
 from bgsub.sinks import VideoSink, VisSink, open_mask_sink, process, render_overlay
 
 W, H = 48, 32
@@ -50,6 +50,12 @@ def test_lossless_mask_video_round_trip_is_exact(tmp_path, ext):
     for got, want in zip(frames, masks):
         for c in range(3):
             np.testing.assert_array_equal(got[:, :, c], want)
+
+
+def test_odd_sized_masks_are_refused_for_a_video_before_writing(tmp_path):
+    with pytest.raises(OutputError, match="folder of PNGs"):
+        open_mask_sink(tmp_path / "m.mkv", width=W + 1, height=H, fps=20)
+    assert not list(tmp_path.iterdir())
 
 
 def test_mp4_mask_video_warns_it_is_lossy(tmp_path, capsys):
@@ -237,6 +243,25 @@ def test_video_sink_writes_colour_pictures(tmp_path, ext):
     frames = _read_video(tmp_path / f"p{ext}")
     assert len(frames) == 4 and frames[0].shape == (H, W, 3)
     assert abs(int(frames[0][:, :, 2].mean()) - 200) < 10 and frames[0][:, :, 0].mean() < 10
+
+
+def test_video_sink_keeps_the_last_column_and_row_of_an_odd_size(tmp_path):
+    # OpenCV's writer drops them; the sink pads to even instead.
+    picture = np.zeros((H + 1, W + 1, 3), np.uint8)
+    picture[-1, :] = 255
+    picture[:, -1] = 255
+    with VideoSink(tmp_path / "p.mkv", fps=10) as sink:
+        sink.write(picture)
+    (frame,) = _read_video(tmp_path / "p.mkv")
+    assert frame.shape == (H + 2, W + 2, 3)
+    np.testing.assert_array_equal(frame[:H + 1, :W + 1], picture)  # FFV1: exact
+
+
+def test_a_full_disk_is_reported_when_the_video_is_finished(tmp_path, monkeypatch):
+    monkeypatch.setattr(sinks, "_free_bytes", lambda folder: 0)
+    with pytest.raises(ProcessingError, match="disk is full"):
+        with open_mask_sink(tmp_path / "m.mkv", width=W, height=H, fps=20) as sink:
+            sink.write(_masks(1)[0])
 
 
 def test_video_sink_blanks_keep_the_video_in_step(tmp_path):

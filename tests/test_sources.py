@@ -163,6 +163,12 @@ def test_scale_halves_the_frames(tmp_path):
     assert items[0][1].shape == (24, 32, 3)
 
 
+def test_a_resize_beyond_the_largest_side_is_refused_before_reading(tmp_path):
+    path = _write_video(tmp_path / "c.mkv", _frames(2, w=64, h=48))
+    with pytest.raises(InputError, match="largest side"):
+        _read_all(path, scale=1000)
+
+
 def test_width_keeps_aspect_ratio(tmp_path):
     info, items = _read_all(_write_folder(tmp_path / "s", _frames(2, w=64, h=48)), width=100)
     assert (info.width, info.height) == (100, 75)

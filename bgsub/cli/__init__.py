@@ -7,16 +7,21 @@ This module only dispatches and turns errors into one line on stderr:
 * :class:`bgsub.errors.BgsubError` -> its message, exit status ``err.exit_code`` (2 bad input, 1
   failure while processing);
 * Ctrl-C -> exit status 130 (sinks have already closed their partial output and said so);
+  ``kill`` (SIGTERM) and a closed terminal (SIGHUP) take the same path, exit status 128 + signal;
+* an OSError that reaches here (a full disk or a closed stdout while printing) -> its reason,
+  exit status 1;
 * anything else is a bug: one line naming it, exit status 1 (``BGSUB_DEBUG=1`` shows the traceback).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import os
+import signal
 import sys
-from typing import List, Optional
+from typing import Iterator, List, Optional
 
 from bgsub.errors import BgsubError
 
@@ -64,6 +69,36 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP, raised where the program is so that outputs close as on Ctrl-C."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+def _raise_terminated(signum: int, frame: object) -> None:
+    raise Terminated(signum)
+
+
+@contextlib.contextmanager
+def _terminate_like_ctrl_c() -> Iterator[None]:
+    """SIGTERM and SIGHUP raise :class:`Terminated` while the command runs. Without this they
+    end the process on the spot and leave only hidden, unplayable ``.partial`` files."""
+    wanted = [getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name)]
+    saved = {}
+    try:
+        for signum in wanted:
+            saved[signum] = signal.signal(signum, _raise_terminated)
+    except ValueError:  # not the main thread (main() called from a thread): leave them be
+        pass
+    try:
+        yield
+    finally:
+        for signum, handler in saved.items():
+            signal.signal(signum, handler)
+
+
 def main(argv: Optional[List[str]] = None) -> int:
     """Entry point of the ``bgsub`` console script; returns the exit status."""
     parser = build_parser()
@@ -72,10 +107,14 @@ def main(argv: Optional[List[str]] = None) -> int:
         parser.print_help(sys.stderr)
         return 2
     try:
-        return int(args.handler(args) or 0)
+        with _terminate_like_ctrl_c():
+            return int(args.handler(args) or 0)
     except BgsubError as err:
         print(f"bgsub: error: {err}", file=sys.stderr)
         return err.exit_code
+    except Terminated as err:
+        print(f"bgsub: stopped by {err}", file=sys.stderr)
+        return 128 + err.signum
     except KeyboardInterrupt:
         print("bgsub: interrupted", file=sys.stderr)
         return 130
@@ -84,6 +123,13 @@ def main(argv: Optional[List[str]] = None) -> int:
         # Point stdout at devnull so the interpreter's final flush does not complain again.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
+    except OSError as err:
+        # The environment, not a bug: a full disk, a stdout that cannot be written.
+        where = f" ({err.filename})" if err.filename else ""
+        print(f"bgsub: error: {err.strerror or err}{where}", file=sys.stderr)
+        with contextlib.suppress(OSError):  # the final flush of a full stdout must not fail again
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
     except Exception as err:  # a bug: say so in one line unless asked for the traceback
         if os.environ.get("BGSUB_DEBUG"):
             raise

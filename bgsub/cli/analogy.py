@@ -3,11 +3,15 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 from typing import Any
 
-from bgsub.cli.common import note
+from bgsub.cli.common import check_distinct, note
 from bgsub.errors import InputError, OutputError
+
+# --zoom enlarges a patch-sized result for viewing (13 px x 64 = 832 px); far more only costs
+# memory (--zoom 100000 asked for terabytes). The side limit also bounds zoomed large images.
+MAX_ZOOM = 64
+MAX_OUTPUT_SIDE = 16384  # bgsub.sources.MAX_SIDE (not imported: it would load cv2 for --help)
 
 _DESCRIPTION = """\
 Make an analogy with a gated RBM: infer the mapping units from the pair (X, Y) -- how X moved
@@ -47,9 +51,11 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--resize", action="store_true",
                         help="shrink the images to one patch instead of working patch by patch")
     parser.add_argument("--stride", type=int, default=None, metavar="PX",
-                        help="patch step for large images (default patch size // 3)")
+                        help="patch step for large images, from 1 to the patch size "
+                             "(default patch size // 3)")
     parser.add_argument("--zoom", type=int, default=1, metavar="N",
-                        help="enlarge the output N times (nearest neighbour), for viewing")
+                        help=f"enlarge the output N times (nearest neighbour), for viewing; 1 to "
+                             f"{MAX_ZOOM}, and at most {MAX_OUTPUT_SIDE} px a side (default 1)")
     parser.add_argument("--overwrite", action="store_true", help="replace an existing output")
     parser.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
     parser.set_defaults(handler=run)
@@ -59,26 +65,65 @@ def _read_gray(path: str):
     import cv2
     import numpy as np
 
-    if not Path(path).is_file():
-        raise InputError(f"image {path} does not exist")
+    from bgsub.flowio import check_image_file
+
+    check_image_file(path)
     image = cv2.imread(path, cv2.IMREAD_GRAYSCALE)
     if image is None:
         raise InputError(f"cannot read image {path}")
     return image.astype(np.float32) / 255.0
 
 
+# The checks below raise InputError / OutputError rather than using argparse `type=` functions:
+# argparse would print its usage block and exit itself, where the project wants one line.
+
+def _check_options(args: argparse.Namespace) -> None:
+    """Option values that need no model or image, checked before anything is read."""
+    if args.stride is not None and args.stride < 1:
+        raise InputError(f"--stride must be at least 1, not {args.stride} "
+                         "(omit it for the default, patch size // 3)")
+    if not 1 <= args.zoom <= MAX_ZOOM:
+        raise InputError(f"--zoom must be from 1 to {MAX_ZOOM}, not {args.zoom}")
+
+
+def _check_output(args: argparse.Namespace) -> None:
+    """Refuse an output that would replace an input or cannot be written, before any work."""
+    import cv2
+
+    from bgsub.sinks import check_file_output
+    from bgsub.rbm import SHIPPED_MODELS
+
+    model = [] if args.model in SHIPPED_MODELS else [args.model]
+    check_distinct([args.x, args.y, args.x2] + model, [("-o", args.output)])
+    check_file_output(args.output, overwrite=args.overwrite)
+    if not cv2.haveImageWriter(args.output):  # decided by the extension alone
+        raise OutputError(f"-o: cannot write an image with this extension: {args.output} "
+                          "(use .png, .jpg, .bmp, .tif, ...)")
+
+
+def _check_sizes(args: argparse.Namespace, patch_size: int, width: int, height: int) -> None:
+    """Option values that depend on the model and the images."""
+    if args.stride is not None and args.stride > patch_size:
+        raise InputError(f"--stride {args.stride} is larger than the model's {patch_size}x"
+                         f"{patch_size} patches: pixels between them would stay black "
+                         f"(use 1 to {patch_size})")
+    side = max(width, height)
+    if args.zoom > 1 and side * args.zoom > MAX_OUTPUT_SIDE:
+        raise InputError(f"--zoom {args.zoom} would make a {width * args.zoom}x{height * args.zoom} "
+                         f"image, over the {MAX_OUTPUT_SIDE} px limit; use --zoom "
+                         f"{max(1, MAX_OUTPUT_SIDE // side)} or less for {width}x{height}")
+
+
 def run(args: argparse.Namespace) -> int:
     import cv2
     import numpy as np
 
+    from bgsub.flowio import write_image
     from bgsub.rbm import load_model
     from bgsub.readout import analogy_images
 
-    out = Path(args.output)
-    if out.exists() and not args.overwrite:
-        raise OutputError(f"{out} exists (use --overwrite to replace it)")
-    if args.zoom < 1:
-        raise InputError(f"--zoom must be at least 1, not {args.zoom}")
+    _check_options(args)
+    _check_output(args)
     model = load_model(args.model)
     p = model.patch_size
     images = [_read_gray(path) for path in (args.x, args.y, args.x2)]
@@ -91,18 +136,14 @@ def run(args: argparse.Namespace) -> int:
     h, w = images[0].shape
     if h < p or w < p:
         raise InputError(f"images are {w}x{h}, smaller than the model's {p}x{p} patches; use --resize")
+    _check_sizes(args, p, w, h)
     if model.output_units == "binary" and float(np.mean(images[0])) > 0.35:
         note("a binary (random-dot) model expects dark images with sparse bright dots", quiet=args.quiet)
     result = analogy_images(model, *images, stride=args.stride)
     picture = np.clip(np.rint(result * 255.0), 0, 255).astype(np.uint8)
     if args.zoom > 1:
         picture = np.kron(picture, np.ones((args.zoom, args.zoom), np.uint8))
-    try:
-        ok = cv2.imwrite(str(out), picture)
-    except cv2.error:
-        ok = False
-    if not ok:
-        raise OutputError(f"cannot write image {out} (check the folder and the extension)")
+    write_image(args.output, picture)
     if not args.quiet:
-        print(f"wrote {out} ({picture.shape[1]}x{picture.shape[0]})")
+        print(f"wrote {args.output} ({picture.shape[1]}x{picture.shape[0]})")
     return 0

@@ -5,10 +5,10 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from pathlib import Path
 from typing import Any
 
 from bgsub.errors import InputError, OutputError
+from bgsub.sinks import check_file_output
 
 _DESCRIPTION = """\
 Score predicted foreground masks against CDnet 2014 ground truth: Recall, Specificity, FPR,
@@ -88,11 +88,7 @@ def run(args: argparse.Namespace) -> int:
                              f"not {value}")
     csv_path = None
     if args.csv not in (None, "-"):
-        csv_path = Path(args.csv)
-        if csv_path.exists() and not args.overwrite:
-            raise OutputError(f"{csv_path} exists (use --overwrite to replace it)")
-        if not csv_path.parent.is_dir():
-            raise OutputError(f"cannot write {csv_path}: folder {csv_path.parent} does not exist")
+        csv_path = check_file_output(args.csv, overwrite=args.overwrite)
 
     result = evaluate(
         args.pred, args.groundtruth,

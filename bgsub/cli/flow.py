@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any, List, Optional, Tuple
 
 import numpy as np
 
-from bgsub.cli.common import add_output_options, add_source_options, note, progress, source_kwargs
+from bgsub.cli.common import (add_output_options, add_source_options, check_distinct, note,
+                              progress, source_kwargs)
 from bgsub.errors import InputError, OutputError
 
 _DESCRIPTION = """\
@@ -35,6 +37,7 @@ examples:
 """
 
 _PICTURE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp"}
+_ARROW_STEP = 16  # default of --arrow-step
 
 
 def register(subparsers: Any) -> None:
@@ -53,21 +56,24 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--vis", metavar="PICTURE", default=None,
                         help="image pair: also write a picture of the flow (.png, .jpg, ...)")
     parser.add_argument("--arrows", action="store_true",
-                        help="draw arrows over the first frame instead of the colour code")
-    parser.add_argument("--arrow-step", type=int, default=16, metavar="PX",
-                        help="arrow grid spacing (default 16)")
+                        help="draw arrows over the first frame instead of the colour code "
+                             "(in the --vis picture, or in the video)")
+    parser.add_argument("--arrow-step", type=int, default=_ARROW_STEP, metavar="PX",
+                        help=f"arrow grid spacing, at least 2 (default {_ARROW_STEP})")
     parser.add_argument("--max-magnitude", type=float, default=None, metavar="PX",
-                        help="speed shown fully saturated (default: the largest in each picture)")
+                        help="speed shown fully saturated, above 0 (default: the largest in each "
+                             "picture)")
     parser.add_argument("--model", default="natural", metavar="M",
                         help="shipped model name (natural, dots-translation, ...) or a .npz path "
                              "(default: natural)")
     est = parser.add_argument_group("estimation")
     est.add_argument("--max-motion", type=float, default=20.0, metavar="PX",
-                     help="largest motion to expect, plans the pyramid (default 20)")
+                     help="largest motion to expect, above 0; plans the pyramid (default 20)")
     est.add_argument("--levels", type=int, default=None, metavar="N",
-                     help="pyramid levels (default: enough for --max-motion; 1 = no pyramid)")
+                     help="pyramid levels, at least 1 (default: enough for --max-motion; "
+                          "1 = no pyramid)")
     est.add_argument("--stride", type=int, default=6, metavar="PX",
-                     help="patch grid step (default 6; smaller = finer field, slower)")
+                     help="patch grid step, at least 1 (default 6; smaller = finer field, slower)")
     add_source_options(parser)
     add_output_options(parser)
     parser.set_defaults(handler=run)
@@ -76,25 +82,75 @@ def register(subparsers: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     from bgsub.rbm import load_model
 
+    _check_options(args)
+    if args.frame2 is None:
+        _check_video_output(args)
+        model = load_model(args.model)
+        return _run_video(args, model)
+    _check_pair_outputs(args)
+    model = load_model(args.model)
+    return _run_pair(args, model)
+
+
+# The checks below raise InputError rather than using argparse `type=` functions: argparse would
+# print its usage block and exit itself, where the project wants one `bgsub: error:` line.
+
+def _check_options(args: argparse.Namespace) -> None:
+    """Refuse option values and combinations that would fail late or be silently ignored."""
     if args.arrow_step < 2:
         raise InputError(f"--arrow-step must be at least 2, not {args.arrow_step}")
     if args.stride < 1:
         raise InputError(f"--stride must be at least 1, not {args.stride}")
+    if args.levels is not None and args.levels < 1:
+        raise InputError(f"--levels must be at least 1 (1 = no pyramid), not {args.levels}")
+    _check_positive("--max-motion", args.max_motion)
+    if args.max_magnitude is not None:
+        _check_positive("--max-magnitude", args.max_magnitude)
     if args.frame2 is None:
         if args.vis is not None:
             raise InputError("--vis is for an image pair; for a video, -o is already the picture video")
-        _check_video_output(args.output, overwrite=args.overwrite)
-        model = load_model(args.model)
-        return _run_video(args, model)
-    ignored = [f"--{name}" for name, default in (("start", 0), ("stop", None), ("step", 1),
-                                                  ("scale", None), ("width", None))
-               if getattr(args, name) != default]
+        return
+    ignored = _given(args, _VIDEO_ONLY)
     if ignored:
         raise InputError(f"{', '.join(ignored)}: frame range and resizing apply to a video input, "
                          "not to an image pair")
-    _check_pair_outputs(args)
-    model = load_model(args.model)
-    return _run_pair(args, model)
+    # For a pair the .flo file holds no picture: without --vis these would silently do nothing.
+    unused = _given(args, _PICTURE_ONLY) if args.vis is None else []
+    if unused:
+        raise InputError(f"{', '.join(unused)}: for an image pair, picture options need "
+                         "--vis PICTURE (the .flo file holds no picture)")
+
+
+# Options (with their defaults) that only a video input uses, and that only a picture uses.
+_VIDEO_ONLY = (("start", 0), ("stop", None), ("step", 1), ("scale", None), ("width", None))
+_PICTURE_ONLY = (("arrows", False), ("arrow_step", _ARROW_STEP), ("max_magnitude", None))
+
+
+def _given(args: argparse.Namespace, options: Tuple[Tuple[str, Any], ...]) -> List[str]:
+    """The flags among ``options`` whose value is not the default, as typed (``--arrow-step``)."""
+    return [f"--{name.replace('_', '-')}" for name, default in options
+            if getattr(args, name) != default]
+
+
+def _check_positive(flag: str, value: float) -> None:
+    # float() accepts "nan" and "inf", which pass every comparison check or none: refuse them.
+    if not math.isfinite(value) or value <= 0:
+        raise InputError(f"{flag} must be a number above 0 (pixels), not {value:g}")
+
+
+def _check_patch_fits(model: Any, width: int, height: int, what: str) -> None:
+    """The same refusal for an image pair and a video: no patch fits, so there is no flow."""
+    p = model.patch_size
+    if min(width, height) < p:
+        raise InputError(f"{what} {width}x{height}, smaller than one {p}x{p} patch of the model")
+
+
+def _input_paths(args: argparse.Namespace) -> List[str]:
+    """What the command reads: the frames, and the model when it is a file, not a shipped name."""
+    from bgsub.rbm import SHIPPED_MODELS
+
+    model = [] if args.model in SHIPPED_MODELS else [args.model]
+    return [args.input, args.frame2 or ""] + model
 
 
 def _estimate(frame1: np.ndarray, frame2: np.ndarray, model: Any, args: argparse.Namespace,
@@ -106,44 +162,37 @@ def _estimate(frame1: np.ndarray, frame2: np.ndarray, model: Any, args: argparse
 
 
 def _check_pair_outputs(args: argparse.Namespace) -> None:
+    from bgsub.sinks import check_file_output
+
+    check_distinct(_input_paths(args), [("-o", args.output), ("--vis", args.vis)])
     out = Path(args.output)
     if out.suffix.lower() != ".flo":
         raise OutputError(f"-o takes a .flo file for an image pair, not {out} (use --vis for a picture)")
-    outputs = [out]
+    check_file_output(out, overwrite=args.overwrite)
     if args.vis is not None:
         vis = Path(args.vis)
         if vis.suffix.lower() not in _PICTURE_SUFFIXES:
             raise OutputError(f"--vis: cannot write a picture with this extension: {vis} "
                               f"(use {', '.join(sorted(_PICTURE_SUFFIXES))})")
-        if vis.resolve() == out.resolve():
-            raise OutputError(f"--vis and -o are the same file: {vis}")
-        outputs.append(vis)
-    for path in outputs:
-        if path.exists() and not args.overwrite:
-            raise OutputError(f"output exists (use --overwrite to replace it): {path}")
-        folder = path.parent if str(path.parent) else Path(".")
-        if not folder.is_dir():
-            raise OutputError(f"cannot write {path}: folder {folder} does not exist")
+        check_file_output(vis, overwrite=args.overwrite)
 
 
 def _run_pair(args: argparse.Namespace, model: Any) -> int:
-    from bgsub.flowio import flow_picture, read_image, write_flo
+    from bgsub.flowio import flow_picture, read_image, write_flo, write_image
 
     frame1, frame2 = read_image(args.input), read_image(args.frame2)
     h, w = frame1.shape[:2]
     if frame2.shape[:2] != (h, w):
         h2, w2 = frame2.shape[:2]
         raise InputError(f"images differ in size: {args.input} is {w}x{h}, {args.frame2} is {w2}x{h2}")
-    p = model.patch_size
-    if min(h, w) < p:
-        raise InputError(f"{args.input} is {w}x{h}, smaller than one {p}x{p} patch")
+    _check_patch_fits(model, w, h, f"{args.input} is")
     estimate = _estimate(frame1, frame2, model, args)
     flow = estimate.dense
     write_flo(args.output, flow, overwrite=args.overwrite)
     if args.vis is not None:
         picture = flow_picture(flow, image=frame1, arrows=args.arrows, step=args.arrow_step,
                                max_magnitude=args.max_magnitude)
-        _write_picture(Path(args.vis), picture)
+        write_image(args.vis, picture)
     known = np.isfinite(flow).all(axis=2)
     if known.any():
         speed = np.hypot(flow[known, 0], flow[known, 1])
@@ -156,25 +205,14 @@ def _run_pair(args: argparse.Namespace, model: Any) -> int:
     return 0
 
 
-def _write_picture(path: Path, picture: np.ndarray) -> None:
-    import cv2
-
-    ok, data = cv2.imencode(path.suffix.lower(), picture)
-    if not ok:
-        raise OutputError(f"cannot encode a picture as {path.suffix}: {path}")
-    try:
-        data.tofile(str(path))
-    except OSError as err:
-        raise OutputError(f"cannot write {path}: {err.strerror or err}") from None
-
-
-def _check_video_output(output: str, *, overwrite: bool) -> None:
+def _check_video_output(args: argparse.Namespace) -> None:
     from bgsub.sinks import check_video_output
 
-    if Path(output).suffix.lower() == ".flo":
-        raise OutputError(f"{output}: a video input gives a picture video (-o clip_flow.mp4); "
+    check_distinct(_input_paths(args), [("-o", args.output)])
+    if Path(args.output).suffix.lower() == ".flo":
+        raise OutputError(f"{args.output}: a video input gives a picture video (-o clip_flow.mp4); "
                           "give two images for a .flo file")
-    check_video_output(output, overwrite=overwrite)
+    check_video_output(args.output, overwrite=args.overwrite)
 
 
 def _run_video(args: argparse.Namespace, model: Any) -> int:
@@ -184,6 +222,7 @@ def _run_video(args: argparse.Namespace, model: Any) -> int:
 
     with open_source(args.input, **source_kwargs(args)) as source:
         info = source.info
+        _check_patch_fits(model, info.width, info.height, f"frames of {args.input} are")
         fps = info.fps / max(1, args.step)
         previous = None
         prior = None

@@ -77,6 +77,8 @@ def _seeds(values: Optional[List[str]]) -> List[int]:
 
 
 def _categories(values: Optional[List[str]]) -> List[str]:
+    if values is not None and not _split(values):  # "-c ," names nothing: not "all"
+        raise InputError("--category is empty (give names, or leave it out for all)")
     names = _split(values) or list(CATEGORIES)
     for name in names:
         if name not in CATEGORIES:

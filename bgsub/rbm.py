@@ -21,6 +21,7 @@ Model files are ``.npz`` archives read with ``allow_pickle=False``; anything mal
 
 from __future__ import annotations
 
+import contextlib
 import json
 import zipfile
 from dataclasses import dataclass, field
@@ -327,7 +328,8 @@ class GatedRBM:
             )
             tmp.replace(path)
         except OSError as err:
-            tmp.unlink(missing_ok=True)
+            with contextlib.suppress(OSError):  # a read-only folder refuses this too
+                tmp.unlink(missing_ok=True)
             raise OutputError(f"cannot write model {path}: {err.strerror or err}") from None
         return path
 

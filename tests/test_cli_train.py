@@ -108,7 +108,7 @@ def test_unwritable_output_folder_is_refused_before_training(tmp_path, capsys, m
     # chmod does not stop root, so the permission check itself answers "no".
     monkeypatch.setattr(os, "access", lambda *args, **kwargs: False)
     assert main(_tiny(tmp_path / "m.npz")) == 2
-    assert "cannot write in the folder" in _one_error_line(capsys)
+    assert "is not writable" in _one_error_line(capsys)
 
 
 @pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs a FIFO")

@@ -229,18 +229,16 @@ def _data_kind(data: List[str]) -> str:
 def _check_output(args: argparse.Namespace, kind: str) -> Path:
     """The model path, checked before any work: a file (not a folder) whose folder can be
     written, new unless ``--overwrite``, and not one of the videos being read."""
-    from bgsub.sinks import _check_writable_folder  # the folder check `run` and `flow` use
+    from bgsub.sinks import check_file_output  # the output check of eval, flow and analogy
 
     out = Path(args.output)
     # A trailing slash means a folder even if it does not exist yet (Path would drop it).
     if out.is_dir() or args.output.endswith(("/", os.sep)):
-        raise OutputError(f"{args.output}: {'is' if out.is_dir() else 'names'} a folder, not a model "
-                          f"file (give a file name, e.g. {out / 'model.npz'})")
+        raise OutputError(f"{args.output}: {'is' if out.is_dir() else 'names'} a folder, not a "
+                          f"model file (give a file name, e.g. {out / 'model.npz'})")
     if out.exists() and not out.is_file():
         raise OutputError(f"{out}: is not a regular file")  # e.g. /dev/null: never replace it
-    if out.exists() and not args.overwrite:
-        raise OutputError(f"{out}: already exists (use --overwrite to replace it)")
-    _check_writable_folder(out.parent, out)
+    check_file_output(out, overwrite=args.overwrite)
     if kind == "video":
         check_distinct(args.data, [("-o", out)])
     return out

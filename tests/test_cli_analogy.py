@@ -28,13 +28,6 @@ def images(tmp_path):
     return [str(p) for p in paths]
 
 
-def _error(capsys, argv) -> str:
-    rc = main(argv)
-    err = capsys.readouterr().err
-    assert rc == 2, err
-    assert err.startswith("bgsub: error:") and err.count("\n") == 1
-    return err
-
 
 def test_writes_the_analogy(images, tmp_path):
     out = tmp_path / "y2.png"
@@ -43,76 +36,76 @@ def test_writes_the_analogy(images, tmp_path):
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []  # no temp left
 
 
-def test_output_may_not_replace_an_input(capsys, images):
+def test_output_may_not_replace_an_input(capsys, images, bgsub_error):
     before = open(images[2], "rb").read()
-    err = _error(capsys, ["analogy", *images, "-o", images[2], "--overwrite"])
+    err = bgsub_error(["analogy", *images, "-o", images[2], "--overwrite"])
     assert "-o would overwrite an input" in err
     assert open(images[2], "rb").read() == before
 
 
 @pytest.mark.parametrize("stride", ["0", "-1"])
-def test_stride_below_one(capsys, images, tmp_path, stride):
-    err = _error(capsys, ["analogy", *images, "-o", str(tmp_path / "y2.png"), "--stride", stride])
+def test_stride_below_one(capsys, images, tmp_path, stride, bgsub_error):
+    err = bgsub_error(["analogy", *images, "-o", str(tmp_path / "y2.png"), "--stride", stride])
     assert f"--stride must be at least 1, not {stride}" in err
 
 
-def test_stride_larger_than_a_patch(capsys, images, tmp_path):
-    err = _error(capsys, ["analogy", *images, "-o", str(tmp_path / "y2.png"), "--stride", "14"])
+def test_stride_larger_than_a_patch(capsys, images, tmp_path, bgsub_error):
+    err = bgsub_error(["analogy", *images, "-o", str(tmp_path / "y2.png"), "--stride", "14"])
     assert "13x13" in err and "use 1 to 13" in err
 
 
 @pytest.mark.parametrize("zoom", ["0", "65", "100000"])
-def test_zoom_out_of_range(capsys, images, tmp_path, zoom):
-    err = _error(capsys, ["analogy", *images, "-o", str(tmp_path / "y2.png"), "--zoom", zoom])
+def test_zoom_out_of_range(capsys, images, tmp_path, zoom, bgsub_error):
+    err = bgsub_error(["analogy", *images, "-o", str(tmp_path / "y2.png"), "--zoom", zoom])
     assert f"--zoom must be from 1 to 64, not {zoom}" in err
 
 
-def test_zoom_of_a_large_image_is_bounded(capsys, tmp_path):
+def test_zoom_of_a_large_image_is_bounded(capsys, tmp_path, bgsub_error):
     paths = []
     for name, seed in (("x", 0), ("y", 1), ("x2", 2)):
         paths.append(str(tmp_path / f"{name}.png"))
         cv2.imwrite(paths[-1], _dots(300, seed))
     out = tmp_path / "y2.png"
-    err = _error(capsys, ["analogy", *paths, "-o", str(out), "--zoom", "60"])
+    err = bgsub_error(["analogy", *paths, "-o", str(out), "--zoom", "60"])
     assert "16384 px" in err and "--zoom 54 or less" in err
     assert not out.exists()
 
 
-def test_folder_given_as_an_image(capsys, images, tmp_path):
+def test_folder_given_as_an_image(capsys, images, tmp_path, bgsub_error):
     folder = tmp_path / "gray"
     folder.mkdir()
-    err = _error(capsys, ["analogy", str(folder), *images[1:], "-o", str(tmp_path / "y2.png")])
+    err = bgsub_error(["analogy", str(folder), *images[1:], "-o", str(tmp_path / "y2.png")])
     assert "gray: is a folder, not an image file" in err
 
 
-def test_output_folder_missing(capsys, images, tmp_path):
-    err = _error(capsys, ["analogy", *images, "-o", str(tmp_path / "nodir" / "y2.png")])
+def test_output_folder_missing(capsys, images, tmp_path, bgsub_error):
+    err = bgsub_error(["analogy", *images, "-o", str(tmp_path / "nodir" / "y2.png")])
     assert "does not exist" in err
 
 
-def test_output_extension_without_an_encoder(capsys, images, tmp_path):
-    err = _error(capsys, ["analogy", *images, "-o", str(tmp_path / "y2.xyz")])
+def test_output_extension_without_an_encoder(capsys, images, tmp_path, bgsub_error):
+    err = bgsub_error(["analogy", *images, "-o", str(tmp_path / "y2.xyz")])
     assert "-o: cannot write an image with this extension" in err
 
 
-def test_output_folder_not_writable(capsys, images, tmp_path, monkeypatch):
+def test_output_folder_not_writable(capsys, images, tmp_path, monkeypatch, bgsub_error):
     # Checked before any work; os.access is faked because root may write anywhere.
     folder = tmp_path / "locked"
     folder.mkdir()
     real_access = os.access
     monkeypatch.setattr(os, "access", lambda path, mode, **kw:
                         False if os.fspath(path) == str(folder) else real_access(path, mode, **kw))
-    err = _error(capsys, ["analogy", *images, "-o", str(folder / "y2.png")])
+    err = bgsub_error(["analogy", *images, "-o", str(folder / "y2.png")])
     assert "not writable" in err
 
 
-def test_disk_full_while_writing(capsys, images, tmp_path, monkeypatch):
+def test_disk_full_while_writing(capsys, images, tmp_path, monkeypatch, bgsub_error):
     def full(*_args, **_kwargs):
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 
     monkeypatch.setattr(os, "replace", full)
     out = tmp_path / "y2.png"
-    err = _error(capsys, ["analogy", *images, "-o", str(out)])
+    err = bgsub_error(["analogy", *images, "-o", str(out)])
     assert f"cannot write image {out}: {os.strerror(errno.ENOSPC)}" in err
     assert not out.exists()
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []  # no partial file

@@ -69,60 +69,53 @@ def test_video_gives_a_flow_video(tmp_path):
     assert frames == 2
 
 
-def _error(capsys, argv) -> str:
-    rc = main(argv)
-    err = capsys.readouterr().err
-    assert rc == 2, err
-    assert err.startswith("bgsub: error:") and err.count("\n") == 1
-    return err
 
-
-def test_missing_image(capsys, pair, tmp_path):
-    err = _error(capsys, ["flow", str(tmp_path / "nope.png"), str(pair[1]), "-o", str(tmp_path / "f.flo")])
+def test_missing_image(capsys, pair, tmp_path, bgsub_error):
+    err = bgsub_error(["flow", str(tmp_path / "nope.png"), str(pair[1]), "-o", str(tmp_path / "f.flo")])
     assert "nope.png" in err
 
 
-def test_unreadable_image(capsys, pair, tmp_path):
+def test_unreadable_image(capsys, pair, tmp_path, bgsub_error):
     junk = tmp_path / "junk.png"
     junk.write_bytes(b"not a png")
-    err = _error(capsys, ["flow", str(junk), str(pair[1]), "-o", str(tmp_path / "f.flo")])
+    err = bgsub_error(["flow", str(junk), str(pair[1]), "-o", str(tmp_path / "f.flo")])
     assert "junk.png" in err
 
 
-def test_different_sizes(capsys, pair, tmp_path):
+def test_different_sizes(capsys, pair, tmp_path, bgsub_error):
     small = tmp_path / "small.png"
     cv2.imwrite(str(small), _texture(60, 70))
-    err = _error(capsys, ["flow", str(pair[0]), str(small), "-o", str(tmp_path / "f.flo")])
+    err = bgsub_error(["flow", str(pair[0]), str(small), "-o", str(tmp_path / "f.flo")])
     assert "differ in size" in err
 
 
-def test_smaller_than_a_patch(capsys, tmp_path):
+def test_smaller_than_a_patch(capsys, tmp_path, bgsub_error):
     tiny = tmp_path / "tiny.png"
     cv2.imwrite(str(tiny), _texture(10, 40))
-    err = _error(capsys, ["flow", str(tiny), str(tiny), "-o", str(tmp_path / "f.flo")])
+    err = bgsub_error(["flow", str(tiny), str(tiny), "-o", str(tmp_path / "f.flo")])
     assert "13x13" in err
 
 
-def test_unknown_model(capsys, pair, tmp_path):
-    err = _error(capsys, ["flow", str(pair[0]), str(pair[1]), "-o", str(tmp_path / "f.flo"),
+def test_unknown_model(capsys, pair, tmp_path, bgsub_error):
+    err = bgsub_error(["flow", str(pair[0]), str(pair[1]), "-o", str(tmp_path / "f.flo"),
                           "--model", "no-such-model"])
     assert "no-such-model" in err
 
 
-def test_existing_output_needs_overwrite(capsys, pair, tmp_path):
+def test_existing_output_needs_overwrite(capsys, pair, tmp_path, bgsub_error):
     out = tmp_path / "f.flo"
     out.write_bytes(b"old")
-    err = _error(capsys, ["flow", str(pair[0]), str(pair[1]), "-o", str(out)])
+    err = bgsub_error(["flow", str(pair[0]), str(pair[1]), "-o", str(out)])
     assert "--overwrite" in err and out.read_bytes() == b"old"
 
 
-def test_output_must_be_flo_for_a_pair(capsys, pair, tmp_path):
-    err = _error(capsys, ["flow", str(pair[0]), str(pair[1]), "-o", str(tmp_path / "f.png")])
+def test_output_must_be_flo_for_a_pair(capsys, pair, tmp_path, bgsub_error):
+    err = bgsub_error(["flow", str(pair[0]), str(pair[1]), "-o", str(tmp_path / "f.png")])
     assert ".flo" in err
 
 
-def test_video_options_refused_for_a_pair(capsys, pair, tmp_path):
-    err = _error(capsys, ["flow", str(pair[0]), str(pair[1]), "-o", str(tmp_path / "f.flo"),
+def test_video_options_refused_for_a_pair(capsys, pair, tmp_path, bgsub_error):
+    err = bgsub_error(["flow", str(pair[0]), str(pair[1]), "-o", str(tmp_path / "f.flo"),
                           "--scale", "0.5"])
     assert "--scale" in err
 
@@ -142,17 +135,17 @@ def _video_file(tmp_path, name: str = "clip.avi", size=(80, 120)):
     return path
 
 
-def test_video_output_may_not_replace_the_input_video(capsys, tmp_path):
+def test_video_output_may_not_replace_the_input_video(capsys, tmp_path, bgsub_error):
     video = _video_file(tmp_path)
     before = video.read_bytes()
-    err = _error(capsys, ["flow", str(video), "-o", str(video), "--overwrite"])
+    err = bgsub_error(["flow", str(video), "-o", str(video), "--overwrite"])
     assert "-o would overwrite an input" in err
     assert video.read_bytes() == before
 
 
-def test_vis_may_not_replace_an_input_image(capsys, pair, tmp_path):
+def test_vis_may_not_replace_an_input_image(capsys, pair, tmp_path, bgsub_error):
     before = pair[0].read_bytes()
-    err = _error(capsys, ["flow", str(pair[0]), str(pair[1]), "-o", str(tmp_path / "f.flo"),
+    err = bgsub_error(["flow", str(pair[0]), str(pair[1]), "-o", str(tmp_path / "f.flo"),
                           "--vis", str(pair[0]), "--overwrite"])
     assert "--vis would overwrite an input" in err
     assert pair[0].read_bytes() == before
@@ -164,25 +157,25 @@ def test_vis_may_not_replace_an_input_image(capsys, pair, tmp_path):
     ("--max-magnitude", "-1"), ("--max-motion", "-5"), ("--max-motion", "nan"),
     ("--max-motion", "0"), ("--levels", "-1"), ("--levels", "0"),
 ])
-def test_pair_refuses_nonsense_numbers(capsys, pair, tmp_path, option, value):
+def test_pair_refuses_nonsense_numbers(capsys, pair, tmp_path, option, value, bgsub_error):
     out = tmp_path / "f.flo"
-    err = _error(capsys, ["flow", str(pair[0]), str(pair[1]), "-o", str(out),
+    err = bgsub_error(["flow", str(pair[0]), str(pair[1]), "-o", str(out),
                           "--vis", str(tmp_path / "f.png"), option, value])
     assert option in err and value in err
     assert not out.exists()
 
 
-def test_video_refuses_nan_max_magnitude(capsys, tmp_path):
+def test_video_refuses_nan_max_magnitude(capsys, tmp_path, bgsub_error):
     video, out = _video_file(tmp_path), tmp_path / "flow.avi"
-    err = _error(capsys, ["flow", str(video), "-o", str(out), "--max-magnitude", "nan"])
+    err = bgsub_error(["flow", str(video), "-o", str(out), "--max-magnitude", "nan"])
     assert "--max-magnitude must be a number above 0" in err
     assert not out.exists()
 
 
 @pytest.mark.parametrize("options", [["--arrows"], ["--arrow-step", "8"], ["--max-magnitude", "5"]])
-def test_pair_picture_options_need_vis(capsys, pair, tmp_path, options):
+def test_pair_picture_options_need_vis(capsys, pair, tmp_path, options, bgsub_error):
     out = tmp_path / "f.flo"
-    err = _error(capsys, ["flow", str(pair[0]), str(pair[1]), "-o", str(out)] + options)
+    err = bgsub_error(["flow", str(pair[0]), str(pair[1]), "-o", str(out)] + options)
     assert options[0] in err and "--vis" in err
     assert not out.exists()
 
@@ -198,7 +191,7 @@ def big_patch_model(tmp_path):
 
 
 @pytest.mark.parametrize("mode", ["pair", "video"])
-def test_model_patch_larger_than_the_frames(capsys, tmp_path, big_patch_model, mode):
+def test_model_patch_larger_than_the_frames(capsys, tmp_path, big_patch_model, mode, bgsub_error):
     if mode == "pair":
         frame = tmp_path / "small.png"
         cv2.imwrite(str(frame), _texture(32, 48))
@@ -207,21 +200,21 @@ def test_model_patch_larger_than_the_frames(capsys, tmp_path, big_patch_model, m
     else:
         video, out = _video_file(tmp_path, size=(32, 48)), tmp_path / "flow.avi"
         argv = ["flow", str(video), "-o", str(out)]
-    err = _error(capsys, argv + ["--model", str(big_patch_model)])
+    err = bgsub_error(argv + ["--model", str(big_patch_model)])
     assert "48x32, smaller than one 41x41 patch" in err
     assert not out.exists()
 
 
-def test_folder_given_as_an_image(capsys, pair, tmp_path):
+def test_folder_given_as_an_image(capsys, pair, tmp_path, bgsub_error):
     folder = tmp_path / "frames"
     folder.mkdir()
-    err = _error(capsys, ["flow", str(folder), str(pair[1]), "-o", str(tmp_path / "f.flo")])
+    err = bgsub_error(["flow", str(folder), str(pair[1]), "-o", str(tmp_path / "f.flo")])
     assert "is a folder, not an image file" in err
 
 
-def test_npy_file_as_model(capsys, pair, tmp_path):
+def test_npy_file_as_model(capsys, pair, tmp_path, bgsub_error):
     model = tmp_path / "plain.npy"
     np.save(model, np.zeros(3))
-    err = _error(capsys, ["flow", str(pair[0]), str(pair[1]), "-o", str(tmp_path / "f.flo"),
+    err = bgsub_error(["flow", str(pair[0]), str(pair[1]), "-o", str(tmp_path / "f.flo"),
                           "--model", str(model)])
     assert "npz" in err

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from bgsub.cli.common import check_distinct, note
+from bgsub.cli.common import check_distinct, model_files, note
 from bgsub.errors import InputError, OutputError
 
 # --zoom enlarges a patch-sized result for viewing (13 px x 64 = 832 px); far more only costs
@@ -91,10 +91,8 @@ def _check_output(args: argparse.Namespace) -> None:
     import cv2
 
     from bgsub.sinks import check_file_output
-    from bgsub.rbm import SHIPPED_MODELS
 
-    model = [] if args.model in SHIPPED_MODELS else [args.model]
-    check_distinct([args.x, args.y, args.x2] + model, [("-o", args.output)])
+    check_distinct([args.x, args.y, args.x2] + model_files(args.model), [("-o", args.output)])
     check_file_output(args.output, overwrite=args.overwrite)
     if not cv2.haveImageWriter(args.output):  # decided by the extension alone
         raise OutputError(f"-o: cannot write an image with this extension: {args.output} "

@@ -71,3 +71,11 @@ def check_distinct(inputs: Iterable[Any], outputs: List[Tuple[str, Any]]) -> Non
         if resolved in seen:
             raise OutputError(f"{path}: given to both {seen[resolved]} and {flag}")
         seen[resolved] = flag
+
+
+def model_files(model: str) -> List[str]:
+    """``[model]`` when ``--model`` names a file, ``[]`` for a shipped model's name: the inputs
+    :func:`check_distinct` must protect."""
+    from bgsub.rbm import SHIPPED_MODELS
+
+    return [] if model in SHIPPED_MODELS else [model]

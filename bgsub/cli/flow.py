@@ -9,8 +9,8 @@ from typing import Any, List, Optional, Tuple
 
 import numpy as np
 
-from bgsub.cli.common import (add_output_options, add_source_options, check_distinct, note,
-                              progress, source_kwargs)
+from bgsub.cli.common import (add_output_options, add_source_options, check_distinct,
+                              model_files, note, progress, source_kwargs)
 from bgsub.errors import InputError, OutputError
 
 _DESCRIPTION = """\
@@ -147,10 +147,7 @@ def _check_patch_fits(model: Any, width: int, height: int, what: str) -> None:
 
 def _input_paths(args: argparse.Namespace) -> List[str]:
     """What the command reads: the frames, and the model when it is a file, not a shipped name."""
-    from bgsub.rbm import SHIPPED_MODELS
-
-    model = [] if args.model in SHIPPED_MODELS else [args.model]
-    return [args.input, args.frame2 or ""] + model
+    return [args.input, args.frame2 or ""] + model_files(args.model)
 
 
 def _estimate(frame1: np.ndarray, frame2: np.ndarray, model: Any, args: argparse.Namespace,

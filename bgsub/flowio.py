@@ -11,8 +11,9 @@ component above ``1e9`` (in magnitude) as unknown.
 
 from __future__ import annotations
 
+import contextlib
 import os
-import tempfile
+import uuid
 from pathlib import Path
 from typing import Optional, Sequence, Tuple, Union
 
@@ -123,29 +124,22 @@ def _write_atomically(path: Path, data: bytes, *, what: str) -> None:
 
     A failed write (disk full, read-only folder) never leaves a partial file, nor destroys the
     file it was to replace; the error names the system's reason. The file gets the usual
-    permissions (``0o666`` less the umask), not the ``0o600`` of a temporary file.
+    permissions (``0o666`` less the umask), not the ``0o600`` of ``tempfile.mkstemp``.
     """
+    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}.part")
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+        # O_EXCL: a fresh file of our own; mode 0o666 is reduced by the umask, as for open().
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
     except OSError as err:
         raise OutputError(f"cannot write {what} {path}: {err.strerror or err}") from None
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
-        os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
     except OSError as err:
-        try:
+        with contextlib.suppress(OSError):
             os.unlink(tmp)
-        except OSError:
-            pass
         raise OutputError(f"cannot write {what} {path}: {err.strerror or err}") from None
-
-
-def _umask() -> int:
-    mask = os.umask(0)  # the only way to read the umask is to set it (briefly) and restore it
-    os.umask(mask)
-    return mask
 
 
 def _make_color_wheel() -> np.ndarray:

@@ -98,7 +98,7 @@ def check_file_output(path: PathLike, *, overwrite: bool = False) -> Path:
         raise OutputError(f"{output}: is a folder; give a file name")
     if output.exists() and not overwrite:
         raise OutputError(f"{output}: already exists (use --overwrite to replace it)")
-    _check_writable_folder(output.parent if str(output.parent) else Path("."), output)
+    _check_writable_folder(output.parent, output)  # Path("x").parent is Path(".")
     return output
 
 

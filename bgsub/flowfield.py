@@ -14,6 +14,7 @@ Coordinates: a pyramid level ``l`` pixel ``x_l`` is ``x / 2**l`` in full-resolut
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 from typing import Any, List, Optional, Tuple
 
@@ -33,7 +34,9 @@ from bgsub.tiling import TEXTURE_SCALE, patch_grid, to_gray
 
 __all__ = [
     "FlowEstimate",
+    "FramePyramid",
     "estimate_flow",
+    "prepare_first_frame",
     "auto_levels",
     "model_range",
     "patch_motion",
@@ -172,6 +175,152 @@ def auto_levels(shape: tuple, *, max_motion: float, model_disp: int, patch_size:
     return levels
 
 
+class FramePyramid:
+    """A frame's gray image pyramid (``cv2.pyrDown``), built once and used as the second frame
+    of one pair and the first of the next.
+
+    It also keeps what :func:`estimate_flow` cuts from a *first* frame (per level and grid: the
+    texture map, the patches and their projections onto the model's filters), so a video's
+    consecutive pairs build each frame's pyramid once, and :func:`prepare_first_frame` can do
+    that work ahead of time (e.g. in another thread, while the previous pair is read).
+
+    Parameters
+    ----------
+    frame : (H, W, 3) BGR or (H, W) gray uint8, or (H, W) float32 gray in [0, 1]
+
+    Attributes
+    ----------
+    images : list of (H_l, W_l) float32
+        Level 0 (the frame, gray in [0, 1]) and the coarser levels built so far.
+    """
+
+    def __init__(self, frame: np.ndarray) -> None:
+        self.images: List[np.ndarray] = [to_gray(frame)]
+        self._caches: dict = {}
+        self._lock = threading.Lock()  # levels() may be called from two threads at once
+
+    @property
+    def shape(self) -> tuple:
+        """``(H, W)`` of level 0."""
+        return self.images[0].shape
+
+    def levels(self, n: int, patch_size: int) -> List[np.ndarray]:
+        """The first ``n`` levels, fewer when a level would be less than two patches across."""
+        with self._lock:
+            while len(self.images) < n and min(self.images[-1].shape) >= 2 * patch_size:
+                self.images.append(cv2.pyrDown(self.images[-1]))
+            return self.images[:n]
+
+    def cache(self, model: Any, settings: tuple) -> dict:
+        """The first-frame cache for one model and patch settings (a plain dict, see
+        :func:`_level`); the model is kept alive with it so its ``id`` stays unique."""
+        with self._lock:
+            key = (id(model), settings)
+            if key not in self._caches:
+                self._caches[key] = (model, {})
+            return self._caches[key][1]
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """Which pyramid levels and grids :func:`estimate_flow` reads (strides in each level's own
+    pixels)."""
+
+    levels: int
+    fine: int
+    coarse_stride: int
+    fine_stride: int
+    pre_stride: int
+    iterations: int
+
+
+def _plan(shape: tuple, *, p: int, rng: int, levels: Optional[int], max_motion: float,
+          stride: int, coarse_stride: Optional[int], finest: int,
+          refine_stride: Optional[int], iterations: int) -> _Plan:
+    if levels is None:
+        levels = auto_levels(shape, max_motion=max_motion, model_disp=rng, patch_size=p)
+    wanted, levels = max(1, int(levels)), 1
+    h, w = shape[:2]
+    while levels < wanted and min(h, w) >= 2 * p:  # as FramePyramid.levels stops
+        h, w, levels = (h + 1) // 2, (w + 1) // 2, levels + 1
+    fine = min(max(0, int(finest)), levels - 1)
+    fine_stride = stride if fine == 0 else max(4, int(round(stride / 2**fine)))
+    pre_stride = fine_stride
+    if refine_stride is not None:
+        pre_stride = max(4, int(round(int(refine_stride) / 2**fine)))
+    return _Plan(levels=levels, fine=fine, coarse_stride=max(4, int(coarse_stride or stride)),
+                 fine_stride=fine_stride, pre_stride=pre_stride,
+                 iterations=max(1, int(iterations)))
+
+
+def _prepare_first(pyr1: List[np.ndarray], cache: dict, plan: _Plan, *, model: Any, p: int,
+                   rng: int, min_texture: float, max_patches: Optional[int],
+                   texture_scale: float, photometric: bool) -> None:
+    """Cut and project the first frame's patches for every grid ``plan`` reads (into
+    ``cache``; what is there already is kept)."""
+
+    def cut(lvl: int, stride: int) -> None:
+        g = pyr1[lvl]
+        _level(g, g, np.eye(3), model, p, stride, rng, min_texture, max_patches, cache=cache,
+               read=False, texture_scale=texture_scale)
+        key = (g.shape, stride)
+        _x_features(model, cache[key][4], cache, key)
+
+    for lvl in range(plan.levels - 1, plan.fine, -1):
+        cut(lvl, plan.coarse_stride)
+    coarsest = pyr1[plan.levels - 1]
+    if photometric and plan.levels > 1 and ("textured", coarsest.shape) not in cache:
+        cache[("textured", coarsest.shape)] = _textured_pixels(coarsest)
+    cut(plan.fine, plan.fine_stride)
+    fine_shape = pyr1[plan.fine].shape
+    if plan.iterations > 1 and plan.pre_stride != plan.fine_stride \
+            and (fine_shape, plan.pre_stride) not in cache:
+        if plan.pre_stride % plan.fine_stride == 0 and max_patches is None \
+                and not hasattr(model, "patch_motion"):
+            # The refining grid is every (pre_stride / fine_stride)-th patch of the final grid:
+            # take that subset of the final grid's patches and projections.
+            _subgrid(cache, fine_shape, p, plan.fine_stride, plan.pre_stride, min_texture, model)
+        else:
+            cut(plan.fine, plan.pre_stride)
+
+
+def prepare_first_frame(
+    frame: FramePyramid,
+    *,
+    model: Any,
+    stride: int = 6,
+    levels: Optional[int] = None,
+    max_motion: float = 20.0,
+    max_disp: Optional[int] = None,
+    coarse_stride: Optional[int] = None,
+    min_texture: float = 0.05,
+    texture_scale: float = TEXTURE_SCALE,
+    max_patches: Optional[int] = None,
+    iterations: int = 1,
+    finest: int = 0,
+    refine_stride: Optional[int] = None,
+    start_tolerance: float = 0.0,
+) -> None:
+    """Do ahead of time the work :func:`estimate_flow` would do on ``frame`` as the *first*
+    frame of a pair (build its pyramid; cut, texture-weigh and project its patches).
+
+    Pass the same keyword values the later :func:`estimate_flow` call gets (the parameters are
+    its parameters of the same names); the result is stored in ``frame`` and changes nothing
+    in what :func:`estimate_flow` returns, only how long it takes. Safe to run in a second
+    thread while ``frame`` is the *second* frame of another :func:`estimate_flow` call.
+    """
+    p = int(model.patch_size)
+    rng = int(max_disp) if max_disp is not None else model_range(model)
+    plan = _plan(frame.shape, p=p, rng=rng, levels=levels, max_motion=max_motion, stride=stride,
+                 coarse_stride=coarse_stride, finest=finest, refine_stride=refine_stride,
+                 iterations=iterations)
+    pyr = frame.levels(plan.levels, p)
+    cache = frame.cache(model, (rng, p, min_texture, max_patches, texture_scale))
+    _prepare_first(pyr, cache, plan, model=model, p=p, rng=rng, min_texture=min_texture,
+                   max_patches=max_patches, texture_scale=texture_scale,
+                   photometric=start_tolerance > 0)
+
+
 def estimate_flow(
     frame1: np.ndarray,
     frame2: np.ndarray,
@@ -203,7 +352,9 @@ def estimate_flow(
 
     Parameters
     ----------
-    frame1, frame2 : (H, W, 3) BGR or (H, W) gray uint8, or (H, W) float32 gray in [0, 1]
+    frame1, frame2 : (H, W, 3) BGR or (H, W) gray uint8, (H, W) float32 gray in [0, 1], or
+        FramePyramid (reused: a video's frame serves as ``frame2`` of one call and ``frame1`` of
+        the next, and what is cut from a ``frame1`` is kept in it)
     model : bgsub.rbm.GatedRBM
         The patch-motion model (``patch_size`` fixes the patch side).
     stride : int
@@ -288,31 +439,33 @@ def estimate_flow(
     -------
     FlowEstimate
     """
-    g1, g2 = to_gray(frame1), to_gray(frame2)
-    if g1.shape != g2.shape:
+    fp1 = frame1 if isinstance(frame1, FramePyramid) else FramePyramid(frame1)
+    fp2 = frame2 if isinstance(frame2, FramePyramid) else FramePyramid(frame2)
+    g1 = fp1.images[0]
+    if g1.shape != fp2.images[0].shape:
         from bgsub.errors import InputError
 
-        raise InputError(f"frames differ in size: {g1.shape} and {g2.shape}")
+        raise InputError(f"frames differ in size: {g1.shape} and {fp2.images[0].shape}")
     p = int(model.patch_size)
     rng = int(max_disp) if max_disp is not None else model_range(model)
-    if levels is None:
-        levels = auto_levels(g1.shape, max_motion=max_motion, model_disp=rng, patch_size=p)
-    levels = max(1, int(levels))
-    pyr1: List[np.ndarray] = [g1]
-    pyr2: List[np.ndarray] = [g2]
-    for _ in range(levels - 1):
-        if min(pyr1[-1].shape) < 2 * p:
-            break
-        pyr1.append(cv2.pyrDown(pyr1[-1]))
-        pyr2.append(cv2.pyrDown(pyr2[-1]))
-    levels = len(pyr1)
-    cstride = max(4, int(coarse_stride or stride))
+    plan = _plan(g1.shape, p=p, rng=rng, levels=levels, max_motion=max_motion, stride=stride,
+                 coarse_stride=coarse_stride, finest=finest, refine_stride=refine_stride,
+                 iterations=iterations)
+    pyr1, pyr2 = fp1.levels(plan.levels, p), fp2.levels(plan.levels, p)
+    levels = plan.levels
+    cstride, fine, fine_stride, pre_stride = (plan.coarse_stride, plan.fine, plan.fine_stride,
+                                              plan.pre_stride)
+    # The first frame's grids, texture maps, patches and their projections, per level and
+    # stride (see _level), all cut up front (or ahead of time, by prepare_first_frame): shared
+    # by the start's readout, every later readout of a level, and later calls on the same
+    # FramePyramid with the same settings.
+    cache = fp1.cache(model, (rng, p, min_texture, max_patches, texture_scale))
+    _prepare_first(pyr1, cache, plan, model=model, p=p, rng=rng, min_texture=min_texture,
+                   max_patches=max_patches, texture_scale=texture_scale,
+                   photometric=start_tolerance > 0)
 
     h_est = np.eye(3) if prior is None else np.asarray(prior, np.float64)
     status = "ok"
-    # The first frame's grids, texture maps, patches and their projections, per level and
-    # stride (see _level): shared by the start's readout and every later readout of a level.
-    cache: dict = {}
     if (prior is not None or search > 0) and levels > 1:
         # Several hypotheses for the start: the prior (a steady pan continues) and no motion (a
         # shaking camera reverses); the coarsest level keeps the best of them after one readout
@@ -349,30 +502,17 @@ def estimate_flow(
         started, shift = False, np.inf
     # The coarsest level has settled once a readout barely moved its fit: skip its re-reads.
     settled = shift < converged
-    iterations = max(1, int(iterations))
     coarse_iterations = max(1, int(coarse_iterations))
-    fine = min(max(0, int(finest)), levels - 1)
     # Every coarse level, and all but the last readout of the finest one, only serve to improve
     # the pre-warp; the last readout is the result.
     # The coarsest level starts from a guess and reads coarse_iterations times: a blurred or
     # large motion is under-read at first (e.g. 2.1 px for 4.3 px), and re-reading after each
     # re-warp converges where the model is most reliable. Finer levels then start close and
     # read once. A coarsest readout that barely moves the fit ends its re-reads (``converged``).
-    plan = [(lvl, cstride) for lvl in range(levels - 1, 0, -1) if lvl > fine
-            for _ in range(coarse_iterations - started if lvl == levels - 1 else 1)]
-    fine_stride = stride if fine == 0 else max(4, int(round(stride / 2**fine)))
-    pre_stride = fine_stride
-    if refine_stride is not None:
-        pre_stride = max(4, int(round(int(refine_stride) / 2**fine)))
-    plan += [(fine, pre_stride)] * (iterations - 1)
-    if iterations > 1 and pre_stride != fine_stride and pre_stride % fine_stride == 0 \
-            and max_patches is None and not hasattr(model, "patch_motion"):
-        # The refining grid is every (pre_stride / fine_stride)-th patch of the final grid: cut
-        # and project the final grid's first-frame patches once and take the refining subset.
-        _level(pyr1[fine], pyr1[fine], np.eye(3), model, p, fine_stride, rng, min_texture,
-               max_patches, cache=cache, read=False, texture_scale=texture_scale)
-        _subgrid(cache, pyr1[fine].shape, p, fine_stride, pre_stride, min_texture, model)
-    for lvl, step in plan:
+    reads = [(lvl, cstride) for lvl in range(levels - 1, 0, -1) if lvl > fine
+             for _ in range(coarse_iterations - started if lvl == levels - 1 else 1)]
+    reads += [(fine, pre_stride)] * (plan.iterations - 1)
+    for lvl, step in reads:
         if settled and lvl == levels - 1:
             continue
         factor = 0.5**lvl

@@ -19,17 +19,18 @@ return an empty mask (or, for a scene cut, restart the model) and say why in ``l
 
 from __future__ import annotations
 
+import concurrent.futures
 import dataclasses
 from dataclasses import dataclass
 from abc import abstractmethod
-from typing import Any, Optional
+from typing import Any, Callable, Optional
 
 import cv2
 import numpy as np
 
 from bgsub.engines import Engine, Param, register_engine
 from bgsub.errors import InputError
-from bgsub.flowfield import estimate_flow
+from bgsub.flowfield import FramePyramid, estimate_flow, prepare_first_frame
 from bgsub.foreground import (
     BackgroundParams,
     CompensatedBackground,
@@ -169,6 +170,33 @@ def _check_image(image: Any) -> np.ndarray:
     return image[:, :, 0] if image.ndim == 3 and image.shape[2] == 1 else image
 
 
+class _Alongside:
+    """See :meth:`MovingCameraEngine._alongside`."""
+
+    def __init__(self, jobs: tuple, worker: Optional[concurrent.futures.Executor]) -> None:
+        self.jobs, self.worker = jobs, worker
+        self.future: Optional[concurrent.futures.Future] = None
+
+    def _run(self) -> None:
+        for job in self.jobs:
+            job()
+
+    def __enter__(self) -> "_Alongside":
+        if self.worker is None:
+            self._run()
+        else:
+            self.future = self.worker.submit(self._run)
+        return self
+
+    def __exit__(self, exc_type: Any, *exc: Any) -> None:
+        if self.future is not None:
+            # Always joined: the jobs change the engine's state, which must be settled when
+            # apply() returns or raises. Their own error is raised unless the body raised one.
+            error = self.future.exception()
+            if error is not None and exc_type is None:
+                raise error
+
+
 class MovingCameraEngine(Engine):
     """Shared per-frame logic; subclasses implement :meth:`_motion` (the front end).
 
@@ -195,6 +223,10 @@ class MovingCameraEngine(Engine):
     threads : int
         OpenBLAS and OpenCV worker threads while a frame is processed (:class:`limited_threads`;
         0 = leave them as configured).
+    overlap : int
+        1: while a frame's motion is measured, a second thread updates the background model
+        with the previous frame and prepares this frame for the next pair (:meth:`_prepare`);
+        0: all in the calling thread. The masks are the same either way.
 
     Attributes
     ----------
@@ -224,6 +256,7 @@ class MovingCameraEngine(Engine):
         threads: int = 1,
         violation_noise: float = 0.0,
         fill_holes: int = 5000,
+        overlap: int = 1,
     ) -> None:
         self.work_width = int(work_width)
         self.motion_model = motion_model
@@ -242,8 +275,14 @@ class MovingCameraEngine(Engine):
         self.heal_below = float(heal_below)
         self.cut_support = float(cut_support)
         self.threads = int(threads)
+        self.overlap = int(overlap)
         self.last_status = "ok"
-        self._prev_gray: Optional[np.ndarray] = None  # (h, w) uint8 working size
+        self._worker: Optional[concurrent.futures.ThreadPoolExecutor] = None
+        # The previous frame as the front end keeps it (see _frame_data), working size.
+        self._prev: Any = None
+        # The background update of the last frame, (frame, learn_slowly, rate): deferred to the
+        # next frame, where it runs alongside the motion front end (see _alongside).
+        self._pending: Optional[tuple] = None
         self._prev_motion: Optional[np.ndarray] = None  # last good (3, 3)
         self._last: Optional[MotionResult] = None
         self._last_frame: Optional[np.ndarray] = None
@@ -274,9 +313,18 @@ class MovingCameraEngine(Engine):
     # ------------------------------------------------------------------ the front end
 
     @abstractmethod
-    def _motion(self, prev_gray: np.ndarray, gray: np.ndarray,
-                prior: Optional[np.ndarray]) -> MotionResult:
-        """The camera motion from ``prev_gray`` to ``gray`` (the front end each engine brings)."""
+    def _motion(self, prev: Any, cur: Any, prior: Optional[np.ndarray]) -> MotionResult:
+        """The camera motion from the previous frame to the current one, given as
+        :meth:`_frame_data` made them (the front end each engine brings)."""
+
+    def _frame_data(self, gray: np.ndarray) -> Any:
+        """What the front end keeps of a frame (``gray``: (h, w) uint8, working size, not
+        modified later); cheap: the expensive part goes to :meth:`_prepare`."""
+        return gray
+
+    def _prepare(self, data: Any) -> None:
+        """Work on a frame that only the *next* pair needs (it is that pair's first frame),
+        done in place on ``data`` while this frame's motion is measured (``overlap``)."""
 
     def _fit(self, points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
              shape: tuple) -> GlobalMotion:
@@ -298,6 +346,10 @@ class MovingCameraEngine(Engine):
         self._in_shape = image.shape[:2]
         with limited_threads(self.threads):
             work = self._to_work(image)
+            if work is image:
+                # The model keeps the frame past this call (the previous frame of the next pair,
+                # the deferred update): not the caller's buffer, which a reading loop may reuse.
+                work = image.copy()
             gray = work if work.ndim == 2 else cv2.cvtColor(work, cv2.COLOR_BGR2GRAY)
             mask = self._step(work, gray, rate)
         self._last_frame, self._last_mask = work, mask
@@ -314,14 +366,17 @@ class MovingCameraEngine(Engine):
         self._last = None
         if float(cv2.meanStdDev(gray)[1][0, 0]) < self.min_contrast:
             # Blank or textureless frame: no motion can be measured; keep the model as it is.
+            self._finish_update()
             self.last_status = "fallback: blank or textureless frame"
             return empty
-        if self._prev_gray is None:
+        if self._prev is None:
             self._restart(work, gray)
             self.last_status = "ok"
             return empty
 
-        result = self._motion(self._prev_gray, gray, self._prev_motion)
+        cur = self._frame_data(gray)
+        with self._alongside(self._finish_update, lambda: self._prepare(cur)):
+            result = self._motion(self._prev, cur, self._prev_motion)
         self._last = result
         status = "ok"
         matrix = result.motion.matrix
@@ -339,7 +394,7 @@ class MovingCameraEngine(Engine):
         support = result.motion.n_inliers / used if result.motion.ok else 0.0
         changed = np.count_nonzero(score > 1.0) / old
         if (changed > self.scene_cut and support < self.cut_support) or changed > 0.8:
-            self._restart(work, gray)
+            self._restart(work, gray, cur)
             self.last_status = "fallback: scene cut"
             return empty
         violation = None
@@ -358,20 +413,37 @@ class MovingCameraEngine(Engine):
             # difference is a ghost (background uncovered since the model learnt an object
             # there): let it heal at the normal rate.
             learn_slowly &= ~(violation < self.heal_below)
-        self.bg.update(work, learn_slowly, rate)
-        self._prev_gray = gray
+        self._pending = (work, learn_slowly, rate)
+        self._prev = cur
         if result.motion.ok:
             self._prev_motion = result.motion.matrix
         self.last_status = status
         return mask
 
-    def _restart(self, work: np.ndarray, gray: np.ndarray) -> None:
+    def _finish_update(self) -> None:
+        """Apply the deferred background update of the last frame, if any."""
+        if self._pending is not None:
+            work, learn_slowly, rate = self._pending
+            self._pending = None
+            self.bg.update(work, learn_slowly, rate)
+
+    def _alongside(self, *jobs: Callable[[], None]) -> "_Alongside":
+        """Context manager: ``jobs`` run in order in the engine's second thread while the body
+        runs (joined on exit), or before the body when ``overlap`` is 0."""
+        if self.overlap > 0 and self._worker is None:
+            self._worker = concurrent.futures.ThreadPoolExecutor(
+                max_workers=1, thread_name_prefix=f"bgsub-{self.name}")
+        return _Alongside(jobs, self._worker if self.overlap > 0 else None)
+
+    def _restart(self, work: np.ndarray, gray: np.ndarray, cur: Any = None) -> None:
+        self._pending = None
         self.bg.reset(work)
         self.bg.update(work)
-        self._prev_gray = gray
+        self._prev = cur if cur is not None else self._frame_data(gray)
         self._prev_motion = None
 
     def get_background_image(self) -> Optional[np.ndarray]:
+        self._finish_update()
         img = self.bg.background_image()
         if img is None or self._in_shape is None:
             return img
@@ -444,11 +516,22 @@ class CompensatedEngine(MovingCameraEngine):
         self.lk_levels = int(lk_levels)
         self.fb_threshold = float(fb_threshold)
 
-    def _motion(self, prev_gray: np.ndarray, gray: np.ndarray,
+    def _frame_data(self, gray: np.ndarray) -> "_LKFrame":
+        return _LKFrame(gray)
+
+    def _prepare(self, data: "_LKFrame") -> None:
+        data.corners = self._corners(data.gray)
+
+    def _corners(self, gray: np.ndarray) -> Optional[np.ndarray]:
+        """Shi-Tomasi corners of ``gray``: ``(N, 1, 2) float32`` or None."""
+        return cv2.goodFeaturesToTrack(gray, maxCorners=self.max_corners,
+                                       qualityLevel=self.corner_quality,
+                                       minDistance=self.min_distance, blockSize=7)
+
+    def _motion(self, prev: "_LKFrame", cur: "_LKFrame",
                 prior: Optional[np.ndarray]) -> MotionResult:
-        pts = cv2.goodFeaturesToTrack(prev_gray, maxCorners=self.max_corners,
-                                      qualityLevel=self.corner_quality,
-                                      minDistance=self.min_distance, blockSize=7)
+        prev_gray, gray = prev.gray, cur.gray
+        pts = prev.corners if prev.corners is not None else self._corners(prev_gray)
         if pts is None or len(pts) < 4:
             empty = np.zeros((0, 2), np.float32)
             return MotionResult(empty, empty, np.zeros(0, np.float32),
@@ -474,6 +557,15 @@ class CompensatedEngine(MovingCameraEngine):
         weights = good.astype(np.float32)
         motion = self._fit(p, d, weights, gray.shape)
         return MotionResult(p, d, weights, motion)
+
+
+@dataclass
+class _LKFrame:
+    """A frame as the Lucas-Kanade front end keeps it: ``gray`` (h, w) uint8 and, once
+    prepared, its corners ``(N, 1, 2) float32`` (None: not found yet, or none)."""
+
+    gray: np.ndarray
+    corners: Optional[np.ndarray] = None
 
 
 class GrbmEngine(MovingCameraEngine):
@@ -527,7 +619,23 @@ class GrbmEngine(MovingCameraEngine):
 
             precompute(self.model, max_disp=model_range(self.model))
 
-    def _read(self, prev_gray: np.ndarray, gray: np.ndarray, prior: Optional[np.ndarray],
+    def _frame_data(self, gray: np.ndarray) -> FramePyramid:
+        return FramePyramid(gray)
+
+    def _prepare(self, data: FramePyramid) -> None:
+        if not hasattr(self.model, "patch_motion"):
+            prepare_first_frame(data, **self._flow_settings(self.levels, self.finest))
+
+    def _flow_settings(self, levels: Optional[int], finest: int,
+                       stride: Optional[int] = None) -> dict:
+        """The keyword arguments :func:`estimate_flow` and :func:`prepare_first_frame` share."""
+        return dict(model=self.model, stride=self.stride if stride is None else stride,
+                    levels=levels, max_motion=self.max_motion, min_texture=self.min_texture,
+                    texture_scale=self.texture_scale, max_patches=self.max_patches,
+                    iterations=self.iterations, finest=finest,
+                    refine_stride=self.refine_stride, start_tolerance=self.start_tolerance)
+
+    def _read(self, prev_gray: FramePyramid, gray: FramePyramid, prior: Optional[np.ndarray],
               finest: int, stride: Optional[int] = None) -> tuple:
         """``(flow, motion, support)``: the readout with its final level ``finest`` (on a grid
         of ``stride`` working-size pixels, default the engine's), the camera motion fitted to
@@ -537,7 +645,7 @@ class GrbmEngine(MovingCameraEngine):
         used = max(int(np.count_nonzero(flow.weights > 0)), 1)
         return flow, motion, (motion.n_inliers / used if motion.ok else 0.0)
 
-    def _flow(self, prev_gray: np.ndarray, gray: np.ndarray, prior: Optional[np.ndarray],
+    def _flow(self, prev_gray: FramePyramid, gray: FramePyramid, prior: Optional[np.ndarray],
               finest: Optional[int] = None, stride: Optional[int] = None):
         levels = self.levels
         if prior is not None and levels is None:
@@ -545,19 +653,11 @@ class GrbmEngine(MovingCameraEngine):
             # cover that; a camera that changes course fails the support test and is retried
             # with the full pyramid.
             levels = self.prior_levels if self.prior_levels > 0 else None
-        return estimate_flow(prev_gray, gray, model=self.model,
-                             stride=self.stride if stride is None else stride,
-                             levels=levels, max_motion=self.max_motion, prior=prior,
-                             min_texture=self.min_texture, texture_scale=self.texture_scale,
-                             max_patches=self.max_patches,
-                             iterations=self.iterations, search=self.search,
+        settings = self._flow_settings(levels, self.finest if finest is None else finest, stride)
+        return estimate_flow(prev_gray, gray, prior=prior, search=self.search,
                              coarse_iterations=self.coarse_iterations,
-                             finest=self.finest if finest is None else finest,
-                             refine_stride=self.refine_stride,
-                             search_below=self.search_below,
-                             start_tolerance=self.start_tolerance,
-                             start_model=self.start_model,
-                             converged=self.converged)
+                             search_below=self.search_below, start_model=self.start_model,
+                             converged=self.converged, **settings)
 
     def _flow_colour(self, shape: tuple) -> Optional[np.ndarray]:
         flow = getattr(self, "_last_flow", None)
@@ -581,7 +681,7 @@ class GrbmEngine(MovingCameraEngine):
             w[flow.beyond] = flow.texture[flow.beyond]
         return w
 
-    def _motion(self, prev_gray: np.ndarray, gray: np.ndarray,
+    def _motion(self, prev_gray: FramePyramid, gray: FramePyramid,
                 prior: Optional[np.ndarray]) -> MotionResult:
         patch = int(getattr(self.model, "patch_size", 0) or 0)
         if min(gray.shape) < patch:
@@ -653,6 +753,9 @@ _COMMON = {
                             "foreground)", low=0),
     "threads": Param(1, "BLAS and OpenCV worker threads while a frame is processed (0 = as "
                         "configured; more threads are slower for these small frames)", low=0),
+    "overlap": Param(1, "1 = update the background and prepare the frame for the next pair "
+                        "in a second thread while the motion is measured (same masks, faster "
+                        "on 2 or more cores); 0 = one thread", low=0, high=1),
     "heal_below": Param(0.25, "background differences where the local motion agrees with the "
                               "camera (violation below this) are learnt at the normal rate "
                               "(ghost healing)", low=0),

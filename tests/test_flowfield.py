@@ -368,3 +368,52 @@ def test_a_converged_coarsest_level_skips_its_re_reads(prior_x, skipped):
     assert patches[0] - patches[1] == skipped * n_coarsest
     np.testing.assert_allclose(prewarps[1], prewarps[0], atol=1e-4)
     assert abs(prewarps[1][0, 2] - 6) < 0.05
+
+
+def _pyramid_kwargs(model):
+    return dict(model=model, levels=3, stride=6, iterations=2, refine_stride=12,
+                min_texture=0.0, start_tolerance=0.015)
+
+
+def test_a_prepared_first_frame_gives_the_same_flow_without_recutting_it(monkeypatch):
+    """prepare_first_frame does ahead of time what estimate_flow does on its first frame: the
+    flow is the same, and estimate_flow then projects no first-frame patch itself."""
+    from bgsub import readout
+    from bgsub.flowfield import FramePyramid, prepare_first_frame
+
+    h, w = 96, 128
+    base = _texture(h, w, seed=5)[:h, :w]
+    moved = _shift(base, 3, -2, h, w)
+    model = _random_contrast_model()
+    kwargs = _pyramid_kwargs(model)
+    expected = estimate_flow(base, moved, prior=np.eye(3), search=1, **kwargs)
+
+    first = FramePyramid(base)
+    prepare_first_frame(first, **kwargs)
+    sides = []
+    real = readout.patch_features
+    monkeypatch.setattr(readout, "patch_features",
+                        lambda m, raw, *, side: sides.append(side) or real(m, raw, side=side))
+    got = estimate_flow(first, FramePyramid(moved), prior=np.eye(3), search=1, **kwargs)
+    assert sides and "x" not in sides  # every readout happened, none re-projected frame 1
+    np.testing.assert_array_equal(got.disp, expected.disp)
+    np.testing.assert_array_equal(got.valid, expected.valid)
+    np.testing.assert_array_equal(got.prewarp, expected.prewarp)
+
+
+def test_a_frame_pyramid_serves_as_second_frame_then_first():
+    """A video's frames as FramePyramids: frame b is the second frame of (a, b) and the first of
+    (b, c); the flows equal those computed from plain arrays."""
+    from bgsub.flowfield import FramePyramid
+
+    h, w = 96, 128
+    a = _texture(h, w, seed=6)[:h, :w]
+    b, c = _shift(a, 2, 1, h, w), _shift(a, 4, 2, h, w)
+    kwargs = _pyramid_kwargs(_random_contrast_model())
+    pa, pb, pc = FramePyramid(a), FramePyramid(b), FramePyramid(c)
+    for (x, y), (px, py) in (((a, b), (pa, pb)), ((b, c), (pb, pc))):
+        np.testing.assert_array_equal(estimate_flow(px, py, **kwargs).disp,
+                                      estimate_flow(x, y, **kwargs).disp)
+    # Reading the same pair again from the kept first-frame work changes nothing either.
+    np.testing.assert_array_equal(estimate_flow(pb, pc, **kwargs).disp,
+                                  estimate_flow(b, c, **kwargs).disp)

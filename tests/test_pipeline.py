@@ -335,3 +335,47 @@ def test_coarser_stride_reaches_the_flow_estimate(monkeypatch):
     eng.apply(frame)
     eng.apply(np.roll(frame, 2, axis=1))
     assert (0, 8) in seen and (1, 16) in seen
+
+
+def _engine_with(name, **params):
+    if name == "grbm":
+        return create_engine("grbm", model=_model_path(), **params)
+    return create_engine(name, **params)
+
+
+@pytest.mark.parametrize("name", ["grbm", "compensated"])
+def test_the_second_thread_changes_no_mask(name):
+    """overlap=1 (background update and next-frame preparation in a second thread) gives the
+    masks and background of overlap=0, frame for frame."""
+    frames = [f for f, _ in _frames(n=8)]
+    one, two = _engine_with(name, overlap=0), _engine_with(name, overlap=1)
+    for frame in frames:
+        np.testing.assert_array_equal(one.apply(frame), two.apply(frame))
+    np.testing.assert_array_equal(one.get_background_image(), two.get_background_image())
+
+
+@pytest.mark.parametrize("name", ["grbm", "compensated"])
+def test_a_reused_input_buffer_gives_the_same_masks(name):
+    """A reading loop that decodes every frame into the same array (cap.read(buf)) must get the
+    masks of fresh arrays: the engine keeps no reference to the caller's buffer."""
+    frames = [cv2.cvtColor(f, cv2.COLOR_BGR2GRAY) for f, _ in _frames(n=6)]
+    fresh, reused = _engine_with(name, work_width=0), _engine_with(name, work_width=0)
+    buf = np.empty_like(frames[0])
+    for frame in frames:
+        np.copyto(buf, frame)
+        got = reused.apply(buf)
+        np.testing.assert_array_equal(got, fresh.apply(frame.copy()))
+
+
+@pytest.mark.parametrize("failing", ["_prepare", "_motion"])
+def test_an_error_on_either_thread_reaches_the_caller(monkeypatch, failing):
+    eng = create_engine("compensated", overlap=1)
+    frames = [f for f, _ in _frames(n=3)]
+    eng.apply(frames[0])
+
+    def boom(*args):
+        raise RuntimeError(f"{failing} failed")
+
+    monkeypatch.setattr(eng, failing, boom)
+    with pytest.raises(RuntimeError, match=f"{failing} failed"):
+        eng.apply(frames[1])

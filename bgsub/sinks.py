@@ -24,13 +24,15 @@ import math
 import os
 import re
 import shutil
+import signal
 import sys
+import threading
 import time
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 from abc import ABC, abstractmethod
-from typing import Callable, Iterable, Optional, Tuple, Union
+from typing import Callable, Dict, Iterable, Iterator, List, Optional, Tuple, Union
 
 import numpy as np
 
@@ -48,11 +50,6 @@ MASK_VIDEO_CODECS = {".mkv": "FFV1", ".avi": "FFV1", ".mp4": "mp4v", ".mov": "mp
 PICTURE_VIDEO_CODECS = {".mp4": "mp4v", ".mov": "mp4v", ".avi": "MJPG", ".mkv": "FFV1"}
 
 _LOSSY_CODECS = {"mp4v", "MJPG"}
-
-# Extensions that look like something bgsub cannot write; refused rather than made into a folder.
-_UNSUPPORTED_VIDEO = {".webm", ".wmv", ".flv", ".mpg", ".mpeg", ".m4v", ".ts", ".ogv", ".gif",
-                      ".3gp", ".h264", ".264"}
-_IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp"}
 
 _MASK_NAME = re.compile(r"bin\d{6}\.png")
 _PARTIAL_MASK_NAME = re.compile(r"\.bin\d{6}\.partial\.png")
@@ -102,6 +99,13 @@ def check_file_output(path: PathLike, *, overwrite: bool = False) -> Path:
     return output
 
 
+def _names_a_folder(path: PathLike) -> bool:
+    """True when ``path`` is an existing folder or ends in a path separator (``out.v2/``):
+    :class:`Path` drops a trailing slash, so look at the text as given."""
+    text = os.fspath(path)
+    return Path(text).is_dir() or text.endswith(tuple(filter(None, (os.sep, os.altsep))))
+
+
 def check_video_output(path: PathLike, *, overwrite: bool = False,
                        codecs: Optional[dict] = None) -> Path:
     """Check that a video can be written at ``path``; return it as a :class:`Path`.
@@ -123,17 +127,23 @@ def check_video_output(path: PathLike, *, overwrite: bool = False,
 def check_mask_output(path: PathLike, *, overwrite: bool = False) -> Path:
     """Check that :func:`open_mask_sink` can write masks at ``path``; nothing is written.
 
-    A mask folder "exists" when it already holds ``binNNNNNN.png`` masks; an empty or unrelated
-    folder is fine. Raises :class:`OutputError` otherwise (see :func:`check_video_output`).
+    A name with a mask video extension (:data:`MASK_VIDEO_CODECS`) is a video; a name without an
+    extension, an existing folder, or a name ending in a slash is a folder of PNGs; any other
+    extension is refused. A mask folder "exists" when it already holds ``binNNNNNN.png`` masks;
+    an empty or unrelated folder is fine. Raises :class:`OutputError` otherwise (see
+    :func:`check_video_output`).
     """
     output = Path(path)
     suffix = output.suffix.lower()
     if suffix in MASK_VIDEO_CODECS:
         return check_video_output(output, overwrite=overwrite, codecs=MASK_VIDEO_CODECS)
-    if suffix in _IMAGE_SUFFIXES or suffix in _UNSUPPORTED_VIDEO:
+    if suffix and not _names_a_folder(path):
+        # masks.txt, mask.png, masks.webm: a file was meant, and a folder of that name would
+        # surprise. A dotted folder name is still fine when it exists or ends in a slash.
         raise OutputError(
-            f"{output}: give a folder (for binNNNNNN.png masks) or a video ending in .mkv or "
-            ".avi (lossless) or .mp4 (lossy)"
+            f"{output}: cannot write masks to a {suffix} file; give a video ending in .mkv or "
+            ".avi (lossless) or .mp4 or .mov (lossy), or a name without an extension for a "
+            "folder of binNNNNNN.png masks"
         )
     if output.exists() and not output.is_dir():
         raise OutputError(f"{output}: is a file, not a folder for masks")
@@ -416,7 +426,8 @@ def open_mask_sink(path: PathLike, *, width: int, height: int, fps: float,
     ----------
     path : str or path
         ``.mkv`` / ``.avi``: a lossless FFV1 gray video; ``.mp4`` / ``.mov``: a lossy mp4v video
-        (warns); anything else: a folder of ``binNNNNNN.png`` (created if missing).
+        (warns); no extension (or an existing folder, or a trailing slash): a folder of
+        ``binNNNNNN.png`` (created if missing). Any other extension is refused.
     width, height : int
         Size of the masks to be written.
     fps : float
@@ -432,8 +443,8 @@ def open_mask_sink(path: PathLike, *, width: int, height: int, fps: float,
     Raises
     ------
     OutputError
-        The output exists (without ``overwrite``), its folder is missing or read-only, or the
-        video writer cannot be opened.
+        The output exists (without ``overwrite``), has an extension that is no mask video, its
+        folder is missing or read-only, or the video writer cannot be opened.
     """
     output = check_mask_output(path, overwrite=overwrite)
     if output.suffix.lower() in MASK_VIDEO_CODECS:
@@ -601,6 +612,40 @@ class RunStats:
         return sum(self.statuses.values())
 
 
+#: Signals :func:`hold_interrupts` holds back: Ctrl-C, and the command line's SIGTERM / SIGHUP.
+_HELD_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP")
+                      if hasattr(signal, name))
+
+
+@contextlib.contextmanager
+def hold_interrupts() -> Iterator[None]:
+    """Hold back Ctrl-C (and any signal with a Python handler, such as the command line's
+    SIGTERM) until the block ends, then deliver it.
+
+    Writing one frame to every sink inside such a block means an interruption never leaves one
+    output a frame longer than another. Only signals with a Python handler are held (the default
+    action of an unhandled SIGTERM cannot be deferred this way), and nothing is held outside the
+    main thread, where handlers cannot be changed.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held: List[int] = []
+    saved: Dict[int, Callable] = {}
+    for signum in _HELD_SIGNALS:
+        handler = signal.getsignal(signum)
+        if callable(handler):  # not SIG_DFL / SIG_IGN
+            saved[signum] = handler
+            signal.signal(signum, lambda n, _frame: held.append(n))
+    try:
+        yield
+    finally:
+        for signum, handler in saved.items():
+            signal.signal(signum, handler)
+        for signum in dict.fromkeys(held):
+            saved[signum](signum, None)  # Ctrl-C's handler raises KeyboardInterrupt here
+
+
 def process(frames: Iterable[Tuple[int, np.ndarray]], engine, masks: MaskSink, *,
             vis: Optional[VisSink] = None, flow_vis: Optional[VideoSink] = None,
             on_frame: Optional[Callable[[int, np.ndarray], None]] = None) -> RunStats:
@@ -629,7 +674,8 @@ def process(frames: Iterable[Tuple[int, np.ndarray]], engine, masks: MaskSink, *
         Frames, time, and the frames whose ``engine.last_status`` was not ``"ok"``.
 
     The sinks are not closed here: open them in ``with`` blocks around this call, so Ctrl-C or an
-    error leaves valid partial outputs.
+    error leaves valid partial outputs. Each frame goes to all sinks or to none: Ctrl-C while a
+    frame is being written takes effect once it is in every output.
     """
     if flow_vis is not None and not callable(getattr(engine, "debug_image", None)):
         raise TypeError(f"{type(engine).__name__} has no debug_image() for a flow visualisation")
@@ -637,15 +683,19 @@ def process(frames: Iterable[Tuple[int, np.ndarray]], engine, masks: MaskSink, *
     started = time.perf_counter()
     for index, frame in frames:
         mask = engine.apply(frame)
-        masks.write(mask, index)
-        if vis is not None:
-            vis.write(frame, mask)
-        if flow_vis is not None:
-            picture = engine.debug_image()
-            if picture is None:
-                flow_vis.write_blank()
-            else:
-                flow_vis.write(picture)
+        # Drawn before any write, so Ctrl-C while drawing leaves this frame out of every output;
+        # Ctrl-C while writing waits until it is in all of them: outputs that differ in length
+        # would no longer line up frame for frame.
+        picture = engine.debug_image() if flow_vis is not None else None
+        with hold_interrupts():
+            masks.write(mask, index)
+            if vis is not None:
+                vis.write(frame, mask)
+            if flow_vis is not None:
+                if picture is None:
+                    flow_vis.write_blank()
+                else:
+                    flow_vis.write(picture)
         status = getattr(engine, "last_status", None)
         if status is not None and status != "ok":
             stats.statuses[str(status)] += 1

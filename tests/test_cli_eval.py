@@ -144,3 +144,8 @@ def test_methods_shows_each_parameters_range(capsys):
 def test_methods_unknown_name(capsys):
     assert main(["methods", "nope"]) == 2
     assert "unknown method" in capsys.readouterr().err
+
+
+def test_methods_empty_name_is_unknown_not_all(bgsub_error):
+    err = bgsub_error(["methods", ""])
+    assert "unknown method ''" in err and "available:" in err

@@ -180,6 +180,19 @@ def test_pair_picture_options_need_vis(capsys, pair, tmp_path, options, bgsub_er
     assert not out.exists()
 
 
+@pytest.mark.parametrize("mode", ["pair", "video"])
+def test_arrow_step_needs_arrows(capsys, pair, tmp_path, mode, bgsub_error):
+    if mode == "pair":
+        out = tmp_path / "f.flo"
+        argv = ["flow", str(pair[0]), str(pair[1]), "-o", str(out), "--vis", str(tmp_path / "f.png")]
+    else:
+        out = tmp_path / "flow.avi"
+        argv = ["flow", str(_video_file(tmp_path)), "-o", str(out)]
+    err = bgsub_error(argv + ["--arrow-step", "8"])
+    assert "--arrow-step needs --arrows" in err
+    assert not out.exists()
+
+
 @pytest.fixture
 def big_patch_model(tmp_path):
     """A (random, untrained) model whose 41x41 patches are larger than 32x48 frames."""

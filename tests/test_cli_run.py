@@ -92,6 +92,24 @@ register_engine("_test_killed", "test: SIGTERM at a frame",
 register_engine("_test_draw", "test: debug_image and last_status")(_Drawing)
 
 
+class _InterruptedDrawing(_Drawing):
+    """Ctrl-C while the debug picture of frame number ``at`` (0-based) is drawn, after its mask
+    was made."""
+
+    def __init__(self, at: int) -> None:
+        super().__init__()
+        self.at = at
+
+    def debug_image(self):
+        if self.seen == self.at + 1:
+            raise KeyboardInterrupt
+        return super().debug_image()
+
+
+register_engine("_test_draw_interrupt", "test: Ctrl-C while drawing a frame",
+                params={"at": Param(5, "frame")})(_InterruptedDrawing)
+
+
 def _clip_frames(n: int = N) -> List[np.ndarray]:
     rng = np.random.default_rng(0)
     frames = []
@@ -194,6 +212,14 @@ def test_existing_output_is_refused_before_processing(tmp_path, clip, capsys):
     assert code == 0 and len(_video_frames(tmp_path / "vis.mp4")) == N
 
 
+def test_output_with_an_unknown_extension_is_refused_not_made_a_folder(tmp_path, clip,
+                                                                       bgsub_error):
+    before = _FrameDiff.calls
+    err = bgsub_error(["run", clip, "-o", tmp_path / "masks.txt", "-m", "_test_diff"])
+    assert ".mkv" in err and "folder of binNNNNNN.png" in err
+    assert _FrameDiff.calls == before and not (tmp_path / "masks.txt").exists()
+
+
 def test_output_equal_to_input_is_refused(tmp_path, clip, capsys):
     code, err = _run(capsys, clip, "-o", clip, "-m", "_test_diff", "--overwrite")
     assert code == 2 and "input" in err
@@ -222,6 +248,15 @@ def test_ctrl_c_keeps_valid_partial_outputs_and_exits_130(tmp_path, clip, capsys
     assert len(_video_frames(tmp_path / "v.mp4")) == 7
     assert "interrupted" in err and "valid" in err and "7 frames" in err
     assert not list(tmp_path.glob(".*partial*"))
+
+
+def test_ctrl_c_mid_frame_leaves_all_outputs_the_same_length(tmp_path, clip, capsys):
+    outputs = [tmp_path / "m.mkv", tmp_path / "v.mp4", tmp_path / "f.mkv"]
+    code, err = _run(capsys, clip, "-o", outputs[0], "--vis", outputs[1], "--flow-vis",
+                     outputs[2], "-m", "_test_draw_interrupt", "--param", "at=5")
+    assert code == 130
+    assert [len(_video_frames(path)) for path in outputs] == [5, 5, 5]
+    assert err.count("holds 5 frames") == 3
 
 
 def test_sigterm_keeps_valid_partial_outputs_like_ctrl_c(tmp_path, clip, capsys):

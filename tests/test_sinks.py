@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import signal
 from pathlib import Path
 from typing import List
 
@@ -205,6 +206,23 @@ def test_image_file_name_is_refused_as_mask_output(tmp_path):
         open_mask_sink(tmp_path / "mask.png", width=W, height=H, fps=20)
 
 
+@pytest.mark.parametrize("name", ["masks.txt", "masks.webm", "masks.PNG"])
+def test_unknown_extension_is_refused_not_made_a_folder(tmp_path, name):
+    with pytest.raises(OutputError) as refused:
+        open_mask_sink(tmp_path / name, width=W, height=H, fps=20)
+    message = str(refused.value)
+    assert all(ext in message for ext in (".mkv", ".avi", ".mp4")) and "without an extension" in message
+    assert os.listdir(tmp_path) == []
+
+
+def test_dotted_folder_name_is_a_folder_when_it_exists_or_ends_in_a_slash(tmp_path):
+    (tmp_path / "run.v1").mkdir()
+    for output in (tmp_path / "run.v1", f"{tmp_path / 'run.v2'}{os.sep}"):
+        with open_mask_sink(output, width=W, height=H, fps=20) as sink:
+            sink.write(_masks(1)[0])
+        assert os.listdir(output) == ["bin000001.png"]
+
+
 def test_failing_video_writer_is_an_output_error(tmp_path, monkeypatch):
     class Closed:
         def __init__(self, *args):
@@ -336,3 +354,33 @@ def test_process_refuses_flow_vis_without_debug_image(tmp_path):
             VideoSink(tmp_path / "f.mp4", fps=10) as flow:
         with pytest.raises(TypeError):
             process([], _Threshold(), sink, flow_vis=flow)
+
+
+class _Drawing(_Threshold):
+    """Also has a debug picture, for a flow visualisation."""
+
+    def debug_image(self):
+        return np.full((H, W, 3), 200, np.uint8)
+
+
+def test_ctrl_c_while_a_frame_is_written_reaches_every_sink_first(tmp_path, monkeypatch):
+    # Ctrl-C arriving while the mask of frame 3 is written (the signal itself, not an exception
+    # raised by the sink) must wait until frame 3 is in the other outputs too.
+    write_mask = sinks.MaskVideoSink._write
+
+    def write_then_ctrl_c(self, mask, index):
+        write_mask(self, mask, index)
+        if self.frames_written == 3:
+            signal.raise_signal(signal.SIGINT)
+
+    monkeypatch.setattr(sinks.MaskVideoSink, "_write", write_then_ctrl_c)
+    before = signal.getsignal(signal.SIGINT)
+    rng = np.random.default_rng(2)
+    frames = [(k, rng.integers(0, 256, (H, W, 3), dtype=np.uint8)) for k in range(6)]
+    with pytest.raises(KeyboardInterrupt):
+        with open_mask_sink(tmp_path / "m.mkv", width=W, height=H, fps=10) as masks, \
+                VisSink(tmp_path / "v.mkv", width=W, height=H, fps=10) as vis, \
+                VideoSink(tmp_path / "f.mkv", fps=10) as flow:
+            process(frames, _Drawing(), masks, vis=vis, flow_vis=flow)
+    assert [len(_read_video(tmp_path / name)) for name in ("m.mkv", "v.mkv", "f.mkv")] == [3] * 3
+    assert signal.getsignal(signal.SIGINT) is before

@@ -109,16 +109,20 @@ def _check_options(args: argparse.Namespace) -> None:
     if args.frame2 is None:
         if args.vis is not None:
             raise InputError("--vis is for an image pair; for a video, -o is already the picture video")
-        return
-    ignored = _given(args, _VIDEO_ONLY)
-    if ignored:
-        raise InputError(f"{', '.join(ignored)}: frame range and resizing apply to a video input, "
-                         "not to an image pair")
-    # For a pair the .flo file holds no picture: without --vis these would silently do nothing.
-    unused = _given(args, _PICTURE_ONLY) if args.vis is None else []
-    if unused:
-        raise InputError(f"{', '.join(unused)}: for an image pair, picture options need "
-                         "--vis PICTURE (the .flo file holds no picture)")
+    else:
+        ignored = _given(args, _VIDEO_ONLY)
+        if ignored:
+            raise InputError(f"{', '.join(ignored)}: frame range and resizing apply to a video "
+                             "input, not to an image pair")
+        # For a pair the .flo file holds no picture: without --vis these would silently do nothing.
+        unused = _given(args, _PICTURE_ONLY) if args.vis is None else []
+        if unused:
+            raise InputError(f"{', '.join(unused)}: for an image pair, picture options need "
+                             "--vis PICTURE (the .flo file holds no picture)")
+    # The colour code has no grid: without --arrows the spacing would silently do nothing.
+    if args.arrow_step != _ARROW_STEP and not args.arrows:
+        raise InputError("--arrow-step needs --arrows (it spaces the arrows; the colour code "
+                         "has none)")
 
 
 # Options (with their defaults) that only a video input uses, and that only a picture uses.

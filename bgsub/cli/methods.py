@@ -104,7 +104,8 @@ def run(args: argparse.Namespace) -> int:
         default = default_method()
     except StopIteration:  # no engine registered at all
         default = None
-    specs = [get_engine_spec(args.name)] if args.name else available_engines()
+    # `is not None`: an empty name (say, an unset shell variable) is an unknown method, not "all".
+    specs = [get_engine_spec(args.name)] if args.name is not None else available_engines()
     entries = [describe(s, is_default=s.name == default) for s in specs]
     if args.json:
         print(json.dumps(entries, indent=2))

@@ -29,8 +29,9 @@ _DESCRIPTION = """\
 Find the moving objects in a video and write one foreground mask per frame (0 = background,
 255 = foreground). INPUT is a video file, a folder of images (natural order; a CDnet sequence
 folder reads its input/ folder) or a quoted glob pattern. OUTPUT is a mask video (.mkv or .avi:
-lossless FFV1; .mp4: lossy) or a folder of CDnet-style binNNNNNN.png masks numbered like the
-input frames (bin000123.png is the mask of in000123.jpg).
+lossless FFV1; .mp4: lossy) or, for a name without an extension, a folder of CDnet-style
+binNNNNNN.png masks numbered like the input frames (bin000123.png is the mask of in000123.jpg);
+other extensions are refused.
 
 Outputs are written under a temporary name and renamed when done; after Ctrl-C they hold the
 frames processed so far and are still valid."""
@@ -55,8 +56,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("input", metavar="INPUT",
                         help="video file, image folder, or glob pattern such as 'frames/*.png'")
     parser.add_argument("-o", "--output", required=True, metavar="OUTPUT",
-                        help="mask video (.mkv/.avi lossless, .mp4 lossy) or a folder for "
-                             "binNNNNNN.png masks")
+                        help="mask video (.mkv/.avi lossless, .mp4 lossy), or a name without "
+                             "an extension for a folder of binNNNNNN.png masks")
     parser.add_argument("-m", "--method", default=None, metavar="NAME",
                         help=f"engine to use (default: {engines.DEFAULT_METHOD}; see "
                              "`bgsub methods`)")

@@ -39,10 +39,12 @@ def _errors(shared_data, frames, **params) -> list:
     errors = []
     for k in frames:
         before, prev, cur = (_gray(lk, folder / f"in{i:06d}.jpg") for i in (k - 2, k - 1, k))
-        prior = lk._motion(before, prev, None).motion.matrix  # the previous frame's motion
-        reference = lk._motion(prev, cur, None).motion
+        on_lk = lk._frame_data
+        # The previous frame's motion:
+        prior = lk._motion(on_lk(before), on_lk(prev), None).motion.matrix
+        reference = lk._motion(on_lk(prev), on_lk(cur), None).motion
         assert reference.ok
-        found = grbm._motion(prev, cur, prior).motion
+        found = grbm._motion(grbm._frame_data(prev), grbm._frame_data(cur), prior).motion
         errors.append(_corner_error(reference.matrix, found.matrix, cur.shape) if found.ok
                       else np.inf)
     return errors

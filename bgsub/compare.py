@@ -62,7 +62,7 @@ from bgsub.evaluation import (
     is_sequence,
     open_ground_truth,
 )
-from bgsub.sinks import VideoSink, open_mask_sink
+from bgsub.sinks import VideoSink, hold_interrupts, open_mask_sink
 from bgsub.sources import VideoInfo, open_source
 
 PathLike = Union[str, "Path"]
@@ -558,13 +558,17 @@ def _run_job(job: _Job, methods: Sequence[str], params: Mapping[str, Mapping[str
                             counts[method] += count_frame(mask, labels, scoring.gt.roi)
                         except InputError as err:
                             raise InputError(f"{scoring.gt.frames[number]}: {err}") from None
-                    if method in sinks:
-                        sinks[method].write(mask, index)
                     outputs.append(mask)
                 if labels is not None:
                     scored.append(number)
-                if picture is not None:
-                    picture.write(layout.compose(frame, outputs))
+                tiles = layout.compose(frame, outputs) if picture is not None else None
+                # A frame goes to every output or, when interrupted, to none.
+                with hold_interrupts():
+                    for method, mask in zip(engines, outputs):
+                        if method in sinks:
+                            sinks[method].write(mask, index)
+                    if picture is not None:
+                        picture.write(tiles)
                 n_frames += 1
     if n_frames == 0:
         raise InputError(f"{job.frames}: no frames in the requested range")

@@ -316,3 +316,31 @@ def test_gt_with_dataset_root_is_refused(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="--gt"):
         compare_methods(tmp_path / "root", methods=["framediff"],
                         gt=tmp_path / "root" / "famA_one")
+
+
+def test_ctrl_c_while_a_mask_is_written_leaves_every_output_the_same_length(
+        sequence: Path, tmp_path: Path, monkeypatch) -> None:
+    # Ctrl-C arriving while the first method's mask of frame 3 is written (the signal itself)
+    # waits until frame 3 is in the other method's masks and the side-by-side video too.
+    import signal
+
+    from bgsub import sinks
+
+    write_png = sinks.MaskFolderSink._write
+    calls = []
+
+    def write_then_ctrl_c(self, mask, index):
+        write_png(self, mask, index)
+        calls.append(index)
+        if len(calls) == 2 * 3 - 1:  # two methods per frame: the first method's frame 3
+            signal.raise_signal(signal.SIGINT)
+
+    monkeypatch.setattr(sinks.MaskFolderSink, "_write", write_then_ctrl_c)
+    out = tmp_path / "report"
+    with pytest.raises(KeyboardInterrupt):
+        compare_methods(sequence, methods=METHODS, report_dir=out)
+    for method in METHODS:
+        assert len(list((out / method).glob("bin*.png"))) == 3, method
+    capture = cv2.VideoCapture(str(out / "side_by_side.mp4"))
+    assert int(capture.get(cv2.CAP_PROP_FRAME_COUNT)) == 3
+    capture.release()

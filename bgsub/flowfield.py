@@ -199,6 +199,15 @@ class FramePyramid:
         self._caches: dict = {}
         self._lock = threading.Lock()  # levels() may be called from two threads at once
 
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)
+        del state["_lock"]  # locks cannot be pickled; a copy gets its own
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._lock = threading.Lock()
+
     @property
     def shape(self) -> tuple:
         """``(H, W)`` of level 0."""

@@ -420,6 +420,13 @@ class MovingCameraEngine(Engine):
         self.last_status = status
         return mask
 
+    def __getstate__(self) -> dict:
+        # Picklable and deep-copyable like the rest of the engine: the worker thread is not
+        # state, a copy makes its own when it needs one.
+        state = dict(self.__dict__)
+        state["_worker"] = None
+        return state
+
     def _finish_update(self) -> None:
         """Apply the deferred background update of the last frame, if any."""
         if self._pending is not None:

@@ -379,3 +379,16 @@ def test_an_error_on_either_thread_reaches_the_caller(monkeypatch, failing):
     monkeypatch.setattr(eng, failing, boom)
     with pytest.raises(RuntimeError, match=f"{failing} failed"):
         eng.apply(frames[1])
+
+
+@pytest.mark.parametrize("name", ["grbm", "compensated"])
+def test_an_engine_mid_video_pickles_and_carries_on_like_the_original(name):
+    import pickle
+
+    frames = [f for f, _ in _frames(n=6)]
+    eng = _engine_with(name)
+    for frame in frames[:3]:
+        eng.apply(frame)
+    twin = pickle.loads(pickle.dumps(eng))
+    for frame in frames[3:]:
+        np.testing.assert_array_equal(twin.apply(frame), eng.apply(frame))

@@ -318,6 +318,20 @@ def prepare_first_frame(
     in what :func:`estimate_flow` returns, only how long it takes. Safe to run in a second
     thread while ``frame`` is the *second* frame of another :func:`estimate_flow` call.
     """
+    _first_frame_work(frame, model=model, stride=stride, levels=levels, max_motion=max_motion,
+                      max_disp=max_disp, coarse_stride=coarse_stride, min_texture=min_texture,
+                      texture_scale=texture_scale, max_patches=max_patches,
+                      iterations=iterations, finest=finest, refine_stride=refine_stride,
+                      start_tolerance=start_tolerance)
+
+
+def _first_frame_work(frame: FramePyramid, *, model: Any, stride: int, levels: Optional[int],
+                      max_motion: float, max_disp: Optional[int],
+                      coarse_stride: Optional[int], min_texture: float, texture_scale: float,
+                      max_patches: Optional[int], iterations: int, finest: int,
+                      refine_stride: Optional[int], start_tolerance: float) -> tuple:
+    """The plan of :func:`estimate_flow` and the first frame's part of it, done (what is in
+    ``frame`` already is kept): ``(plan, pyramid levels, cache, patch side, model range)``."""
     p = int(model.patch_size)
     rng = int(max_disp) if max_disp is not None else model_range(model)
     plan = _plan(frame.shape, p=p, rng=rng, levels=levels, max_motion=max_motion, stride=stride,
@@ -328,6 +342,7 @@ def prepare_first_frame(
     _prepare_first(pyr, cache, plan, model=model, p=p, rng=rng, min_texture=min_texture,
                    max_patches=max_patches, texture_scale=texture_scale,
                    photometric=start_tolerance > 0)
+    return plan, pyr, cache, p, rng
 
 
 def estimate_flow(
@@ -455,23 +470,19 @@ def estimate_flow(
         from bgsub.errors import InputError
 
         raise InputError(f"frames differ in size: {g1.shape} and {fp2.images[0].shape}")
-    p = int(model.patch_size)
-    rng = int(max_disp) if max_disp is not None else model_range(model)
-    plan = _plan(g1.shape, p=p, rng=rng, levels=levels, max_motion=max_motion, stride=stride,
-                 coarse_stride=coarse_stride, finest=finest, refine_stride=refine_stride,
-                 iterations=iterations)
-    pyr1, pyr2 = fp1.levels(plan.levels, p), fp2.levels(plan.levels, p)
-    levels = plan.levels
-    cstride, fine, fine_stride, pre_stride = (plan.coarse_stride, plan.fine, plan.fine_stride,
-                                              plan.pre_stride)
     # The first frame's grids, texture maps, patches and their projections, per level and
     # stride (see _level), all cut up front (or ahead of time, by prepare_first_frame): shared
     # by the start's readout, every later readout of a level, and later calls on the same
     # FramePyramid with the same settings.
-    cache = fp1.cache(model, (rng, p, min_texture, max_patches, texture_scale))
-    _prepare_first(pyr1, cache, plan, model=model, p=p, rng=rng, min_texture=min_texture,
-                   max_patches=max_patches, texture_scale=texture_scale,
-                   photometric=start_tolerance > 0)
+    plan, pyr1, cache, p, rng = _first_frame_work(
+        fp1, model=model, stride=stride, levels=levels, max_motion=max_motion,
+        max_disp=max_disp, coarse_stride=coarse_stride, min_texture=min_texture,
+        texture_scale=texture_scale, max_patches=max_patches, iterations=iterations,
+        finest=finest, refine_stride=refine_stride, start_tolerance=start_tolerance)
+    pyr2 = fp2.levels(plan.levels, p)
+    levels = plan.levels
+    cstride, fine, fine_stride, pre_stride = (plan.coarse_stride, plan.fine, plan.fine_stride,
+                                              plan.pre_stride)
 
     h_est = np.eye(3) if prior is None else np.asarray(prior, np.float64)
     status = "ok"

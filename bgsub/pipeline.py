@@ -642,17 +642,17 @@ class GrbmEngine(MovingCameraEngine):
                     iterations=self.iterations, finest=finest,
                     refine_stride=self.refine_stride, start_tolerance=self.start_tolerance)
 
-    def _read(self, prev_gray: FramePyramid, gray: FramePyramid, prior: Optional[np.ndarray],
+    def _read(self, prev: FramePyramid, cur: FramePyramid, prior: Optional[np.ndarray],
               finest: int, stride: Optional[int] = None) -> tuple:
         """``(flow, motion, support)``: the readout with its final level ``finest`` (on a grid
         of ``stride`` working-size pixels, default the engine's), the camera motion fitted to
         it and the fraction of its usable patches that agree with it."""
-        flow = self._flow(prev_gray, gray, prior, finest, stride)
-        motion = self._fit(flow.centres, flow.disp, flow.weights, gray.shape)
+        flow = self._flow(prev, cur, prior, finest, stride)
+        motion = self._fit(flow.centres, flow.disp, flow.weights, cur.shape)
         used = max(int(np.count_nonzero(flow.weights > 0)), 1)
         return flow, motion, (motion.n_inliers / used if motion.ok else 0.0)
 
-    def _flow(self, prev_gray: FramePyramid, gray: FramePyramid, prior: Optional[np.ndarray],
+    def _flow(self, prev: FramePyramid, cur: FramePyramid, prior: Optional[np.ndarray],
               finest: Optional[int] = None, stride: Optional[int] = None):
         levels = self.levels
         if prior is not None and levels is None:
@@ -661,7 +661,7 @@ class GrbmEngine(MovingCameraEngine):
             # with the full pyramid.
             levels = self.prior_levels if self.prior_levels > 0 else None
         settings = self._flow_settings(levels, self.finest if finest is None else finest, stride)
-        return estimate_flow(prev_gray, gray, prior=prior, search=self.search,
+        return estimate_flow(prev, cur, prior=prior, search=self.search,
                              coarse_iterations=self.coarse_iterations,
                              search_below=self.search_below, start_model=self.start_model,
                              converged=self.converged, **settings)
@@ -688,15 +688,15 @@ class GrbmEngine(MovingCameraEngine):
             w[flow.beyond] = flow.texture[flow.beyond]
         return w
 
-    def _motion(self, prev_gray: FramePyramid, gray: FramePyramid,
+    def _motion(self, prev: FramePyramid, cur: FramePyramid,
                 prior: Optional[np.ndarray]) -> MotionResult:
         patch = int(getattr(self.model, "patch_size", 0) or 0)
-        if min(gray.shape) < patch:
+        if min(cur.shape) < patch:
             # Every frame would fall back to "no correspondences": a model for other footage.
-            h, w = gray.shape
+            h, w = cur.shape
             raise InputError(f"frames of {w}x{h} (working size) are smaller than the model's "
                              f"{patch}x{patch} patches")
-        flow, motion, support = self._read(prev_gray, gray, prior, self.finest)
+        flow, motion, support = self._read(prev, cur, prior, self.finest)
         finest = self.finest
         # Low support at the final level means the model cannot read it (motion blur, heavy
         # compression: on CDnet traffic's shaking frames) while a reduced image, where the blur
@@ -707,7 +707,7 @@ class GrbmEngine(MovingCameraEngine):
         while (support < self.coarser_below and finest < self.finest + 2
                and finest + 1 < flow.levels):
             finest += 1
-            coarser = self._read(prev_gray, gray, prior, finest, self.coarser_stride)
+            coarser = self._read(prev, cur, prior, finest, self.coarser_stride)
             if coarser[1].ok and (coarser[2] > support or not motion.ok):
                 flow, motion, support = coarser
         weights = flow.weights
@@ -718,7 +718,7 @@ class GrbmEngine(MovingCameraEngine):
             return first
         # The prior may be wrong (the camera changed course): also try from scratch and keep
         # the reading more patches agree with.
-        flow, retry, _ = self._read(prev_gray, gray, None, self.finest)
+        flow, retry, _ = self._read(prev, cur, None, self.finest)
         second = MotionResult(flow.centres, flow.disp, flow.weights, retry, self._vweights(flow))
         if second.motion.ok and (not motion.ok or second.motion.n_inliers > motion.n_inliers):
             self._last_flow = flow

@@ -11,9 +11,7 @@ component above ``1e9`` (in magnitude) as unknown.
 
 from __future__ import annotations
 
-import contextlib
 import os
-import uuid
 from pathlib import Path
 from typing import Optional, Sequence, Tuple, Union
 
@@ -21,6 +19,7 @@ import cv2
 import numpy as np
 
 from bgsub.errors import InputError, OutputError
+from bgsub.sinks import write_atomically
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -115,31 +114,8 @@ def write_flo(path: PathLike, flow: np.ndarray, *, overwrite: bool = False) -> P
     data[~np.isfinite(data).all(axis=2)] = UNKNOWN_VALUE
     height, width = data.shape[:2]
     header = FLO_TAG.astype("<f4").tobytes() + np.array([width, height], "<i4").tobytes()
-    _write_atomically(p, header + data.tobytes(), what="flow file")
+    write_atomically(p, header + data.tobytes(), what="flow file")
     return p
-
-
-def _write_atomically(path: Path, data: bytes, *, what: str) -> None:
-    """Write ``data`` under a temporary name in the same folder, then rename it to ``path``.
-
-    A failed write (disk full, read-only folder) never leaves a partial file, nor destroys the
-    file it was to replace; the error names the system's reason. The file gets the usual
-    permissions (``0o666`` less the umask), not the ``0o600`` of ``tempfile.mkstemp``.
-    """
-    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}.part")
-    try:
-        # O_EXCL: a fresh file of our own; mode 0o666 is reduced by the umask, as for open().
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
-    except OSError as err:
-        raise OutputError(f"cannot write {what} {path}: {err.strerror or err}") from None
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.replace(tmp, path)
-    except OSError as err:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise OutputError(f"cannot write {what} {path}: {err.strerror or err}") from None
 
 
 def _make_color_wheel() -> np.ndarray:
@@ -400,7 +376,7 @@ def write_image(path: PathLike, picture: np.ndarray) -> Path:
         ok = False
     if not ok:
         raise OutputError(f"cannot encode a picture as {p.suffix or '(no extension)'}: {p}")
-    _write_atomically(p, data.tobytes(), what="image")
+    write_atomically(p, data.tobytes(), what="image")
     return p
 
 

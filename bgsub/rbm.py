@@ -21,7 +21,7 @@ Model files are ``.npz`` archives read with ``allow_pickle=False``; anything mal
 
 from __future__ import annotations
 
-import contextlib
+import io
 import json
 import zipfile
 from dataclasses import dataclass, field
@@ -318,19 +318,12 @@ class GatedRBM:
         arrays = {name: getattr(self, name) for name in _ARRAYS}
         if self.wyf_gen is not None:
             arrays["wyf_gen"] = self.wyf_gen
-        tmp = path.with_name(path.name + ".tmp.npz")
-        try:
-            np.savez_compressed(
-                tmp,
-                format_version=np.array(FORMAT_VERSION, np.int64),
-                header=np.array(json.dumps(header)),
-                **arrays,
-            )
-            tmp.replace(path)
-        except OSError as err:
-            with contextlib.suppress(OSError):  # a read-only folder refuses this too
-                tmp.unlink(missing_ok=True)
-            raise OutputError(f"cannot write model {path}: {err.strerror or err}") from None
+        from bgsub.sinks import write_atomically  # (sinks imports OpenCV; rbm does not need it)
+
+        archive = io.BytesIO()  # a model is a few hundred KB: written whole, then renamed
+        np.savez_compressed(archive, format_version=np.array(FORMAT_VERSION, np.int64),
+                            header=np.array(json.dumps(header)), **arrays)
+        write_atomically(path, archive.getvalue(), what="model")
         return path
 
     @classmethod

@@ -28,6 +28,7 @@ import signal
 import sys
 import threading
 import time
+import uuid
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -97,6 +98,29 @@ def check_file_output(path: PathLike, *, overwrite: bool = False) -> Path:
         raise OutputError(f"{output}: already exists (use --overwrite to replace it)")
     _check_writable_folder(output.parent, output)  # Path("x").parent is Path(".")
     return output
+
+
+def write_atomically(path: Path, data: bytes, *, what: str) -> None:
+    """Write ``data`` under a temporary name in the same folder, then rename it to ``path``.
+
+    A failed write (disk full, read-only folder) never leaves a partial file, nor destroys the
+    file it was to replace; the error names the system's reason. The file gets the usual
+    permissions (``0o666`` less the umask), not the ``0o600`` of ``tempfile.mkstemp``.
+    """
+    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}.part")
+    try:
+        # O_EXCL: a fresh file of our own; mode 0o666 is reduced by the umask, as for open().
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+    except OSError as err:
+        raise OutputError(f"cannot write {what} {path}: {err.strerror or err}") from None
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.replace(tmp, path)
+    except OSError as err:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise OutputError(f"cannot write {what} {path}: {err.strerror or err}") from None
 
 
 def _names_a_folder(path: PathLike) -> bool:

@@ -179,3 +179,20 @@ def test_load_model_by_path_and_unknown_name(tmp_path):
 def test_shipped_dots_models_load(name):
     model = load_model(name)
     assert model.patch_size == 13 and model.output_units == "binary"
+
+
+def test_a_failed_save_keeps_the_old_model_and_leaves_no_partial_file(tmp_path, monkeypatch):
+    import os
+
+    path = _tiny().save(tmp_path / "m.npz")
+    before = path.read_bytes()
+
+    def disk_full(src, dst):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(os, "replace", disk_full)
+    with pytest.raises(OutputError, match="cannot write model .*No space left on device"):
+        GatedRBM.create(patch_size=5, n_factors=4, n_hidden=3,
+                        rng=np.random.default_rng(9)).save(path)
+    assert path.read_bytes() == before
+    assert [p.name for p in tmp_path.iterdir()] == ["m.npz"]

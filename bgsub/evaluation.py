@@ -279,9 +279,14 @@ def _read_labels(path: Path) -> np.ndarray:
 
 
 def _read_temporal_roi(path: Path) -> Optional[Tuple[int, int]]:
-    if not path.is_file():
+    if not path.exists():
         return None
-    parts = path.read_text(errors="replace").split()
+    if not path.is_file():
+        raise InputError(f"{path} is not a file (it should hold 'first last')")
+    try:
+        parts = path.read_text(errors="replace").split()
+    except OSError as err:
+        raise InputError(f"cannot read {path}: {err.strerror or err}") from None
     try:
         first, last = int(parts[0]), int(parts[1])
     except (IndexError, ValueError):

@@ -343,3 +343,10 @@ def test_python_bool_masks_and_bad_dtype(hand_case):
     assert evaluate_sequence(as_bool, gt).counts == HAND_COUNTS
     with pytest.raises(InputError, match="float64"):
         evaluate_sequence({2: PRED2 / 255.0, 3: PRED3 / 255.0}, gt)
+
+
+def test_a_temporal_roi_that_is_a_folder_is_an_error_not_ignored(tmp_path):
+    gt = write_sequence(tmp_path / "seq", {1: np.zeros((4, 5), np.uint8)})
+    (gt / "temporalROI.txt").mkdir()
+    with pytest.raises(InputError, match=r"temporalROI\.txt is not a file"):
+        open_ground_truth(gt)

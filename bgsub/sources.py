@@ -201,8 +201,16 @@ class _ImageListBackend:
 
     def read(self, index: int) -> np.ndarray:
         path = self.files[index]
+        try:
+            data = np.fromfile(path, np.uint8)
+        except OSError as err:
+            raise InputError(f"{path}: cannot read this image ({err.strerror or err})") from None
+        if path.suffix.lower() in _JPEG_EXTENSIONS and not _ends_as_jpeg(data):
+            # libjpeg would decode what is there, fill the rest with gray and only print
+            # "Premature end of JPEG file" without a name: a half-gray frame is no input.
+            raise InputError(f"{path}: truncated JPEG (it stops before its end marker)")
         with quiet_opencv():
-            image = cv2.imread(str(path), cv2.IMREAD_COLOR)
+            image = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
         if image is None:
             raise InputError(f"{path}: cannot read this image (corrupt or not an image)")
         return image
@@ -215,6 +223,18 @@ class _ImageListBackend:
         end = len(self.files) if stop is None else min(stop, len(self.files))
         for index in range(start, end, step):
             yield index, self.read(index)
+
+
+_JPEG_EXTENSIONS = frozenset({".jpg", ".jpeg", ".jpe"})
+
+
+def _ends_as_jpeg(data: np.ndarray) -> bool:
+    """``(N,) uint8`` file bytes hold a JPEG end-of-image marker (``FF D9``) near their end.
+
+    Inside a JPEG's compressed data a 0xFF byte is always followed by 0x00 or a restart marker,
+    so ``FF D9`` is the end marker; some writers pad a few bytes after it."""
+    tail = data[-1024:].tobytes()
+    return b"\xff\xd9" in tail
 
 
 def _is_image_file(path: Path) -> bool:

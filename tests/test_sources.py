@@ -279,3 +279,21 @@ def test_start_past_the_end_of_a_folder(tmp_path):
 ])
 def test_invalid_options(tmp_path, kwargs):
     _error(_write_folder(tmp_path / "s", _frames(3)), **kwargs)
+
+
+def test_a_truncated_jpeg_is_reported_by_name(tmp_path, capfd):
+    folder = _write_folder(tmp_path / "seq", _frames(3), pattern="in{:06d}.jpg")
+    cut = folder / "in000002.jpg"
+    data = cut.read_bytes()
+    cut.write_bytes(data[: len(data) // 2])
+    message = _error(folder)
+    assert "in000002.jpg" in message and "truncated" in message
+    assert "Premature end" not in capfd.readouterr().err  # no nameless decoder chatter
+
+
+def test_whole_jpegs_read_as_before(tmp_path):
+    frames = _frames(2)
+    folder = _write_folder(tmp_path / "seq", frames, pattern="in{:06d}.jpg")
+    _, got = _read_all(folder)
+    for (_, image), path in zip(got, sorted(folder.iterdir())):
+        np.testing.assert_array_equal(image, cv2.imread(str(path)))

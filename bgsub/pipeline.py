@@ -20,10 +20,11 @@ return an empty mask (or, for a scene cut, restart the model) and say why in ``l
 from __future__ import annotations
 
 import concurrent.futures
+import contextlib
 import dataclasses
 from dataclasses import dataclass
 from abc import abstractmethod
-from typing import Any, Callable, Optional
+from typing import Any, Callable, Iterator, Optional
 
 import cv2
 import numpy as np
@@ -168,33 +169,6 @@ def _check_image(image: Any) -> np.ndarray:
     if image.shape[0] == 0 or image.shape[1] == 0:
         raise InputError(f"engine input is empty (shape {image.shape})")
     return image[:, :, 0] if image.ndim == 3 and image.shape[2] == 1 else image
-
-
-class _Alongside:
-    """See :meth:`MovingCameraEngine._alongside`."""
-
-    def __init__(self, jobs: tuple, worker: Optional[concurrent.futures.Executor]) -> None:
-        self.jobs, self.worker = jobs, worker
-        self.future: Optional[concurrent.futures.Future] = None
-
-    def _run(self) -> None:
-        for job in self.jobs:
-            job()
-
-    def __enter__(self) -> "_Alongside":
-        if self.worker is None:
-            self._run()
-        else:
-            self.future = self.worker.submit(self._run)
-        return self
-
-    def __exit__(self, exc_type: Any, *exc: Any) -> None:
-        if self.future is not None:
-            # Always joined: the jobs change the engine's state, which must be settled when
-            # apply() returns or raises. Their own error is raised unless the body raised one.
-            error = self.future.exception()
-            if error is not None and exc_type is None:
-                raise error
 
 
 class MovingCameraEngine(Engine):
@@ -434,13 +408,29 @@ class MovingCameraEngine(Engine):
             self._pending = None
             self.bg.update(work, learn_slowly, rate)
 
-    def _alongside(self, *jobs: Callable[[], None]) -> "_Alongside":
-        """Context manager: ``jobs`` run in order in the engine's second thread while the body
-        runs (joined on exit), or before the body when ``overlap`` is 0."""
-        if self.overlap > 0 and self._worker is None:
+    @contextlib.contextmanager
+    def _alongside(self, *jobs: Callable[[], None]) -> Iterator[None]:
+        """``jobs`` run in order in the engine's second thread while the ``with`` body runs, or
+        before the body when ``overlap`` is 0. Always joined before the block ends: the jobs
+        change the engine's state, which must be settled when ``apply()`` returns or raises.
+        Their error is raised unless the body raised one."""
+        if self.overlap <= 0:
+            for job in jobs:
+                job()
+            yield
+            return
+        if self._worker is None:
             self._worker = concurrent.futures.ThreadPoolExecutor(
                 max_workers=1, thread_name_prefix=f"bgsub-{self.name}")
-        return _Alongside(jobs, self._worker if self.overlap > 0 else None)
+        future = self._worker.submit(lambda: [job() for job in jobs])
+        try:
+            yield
+        except BaseException:
+            future.exception()  # wait for it; the body's error is the one reported
+            raise
+        error = future.exception()
+        if error is not None:
+            raise error
 
     def _restart(self, work: np.ndarray, gray: np.ndarray, cur: Any = None) -> None:
         self._pending = None

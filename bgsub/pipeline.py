@@ -357,8 +357,19 @@ class MovingCameraEngine(Engine):
         if not result.motion.ok:
             status = f"fallback: {result.motion.reason}"
             matrix = self._prev_motion if self._prev_motion is not None else np.eye(3)
-        self.bg.warp(matrix)
-        score = self.bg.score(work)
+        violation: list = []  # the flow-violation map, made alongside the background's warp
+
+        def make_violation() -> None:
+            if self.flow_boost != 0.0 or self.flow_damp != 0.0:
+                vw = (result.weights if result.violation_weights is None
+                      else result.violation_weights)
+                violation.append(flow_violation_map(
+                    result.points, result.disp, matrix, weights=vw, shape=gray.shape,
+                    threshold=self.violation_threshold, noise_scale=self.violation_noise))
+
+        with self._alongside(make_violation):
+            self.bg.warp(matrix)
+            score = self.bg.score(work)
         # Scene cut: after compensation most of the frame still differs (a new shot) and the
         # motion estimate has little support (a new shot has no consistent motion), or nearly
         # all of it differs whatever the motion estimate says.
@@ -371,13 +382,7 @@ class MovingCameraEngine(Engine):
             self._restart(work, gray, cur)
             self.last_status = "fallback: scene cut"
             return empty
-        violation = None
-        if self.flow_boost != 0.0 or self.flow_damp != 0.0:
-            vw = result.weights if result.violation_weights is None else result.violation_weights
-            violation = flow_violation_map(result.points, result.disp, matrix,
-                                           weights=vw, shape=gray.shape,
-                                           threshold=self.violation_threshold,
-                                           noise_scale=self.violation_noise)
+        violation = violation[0] if violation else None
         mask = fuse_masks(score, violation, flow_boost=self.flow_boost, flow_damp=self.flow_damp,
                           threshold=self.threshold, min_area=self.min_area, close=self.close,
                           fill_holes=self.fill_holes)

@@ -62,7 +62,7 @@ from bgsub.evaluation import (
     is_sequence,
     open_ground_truth,
 )
-from bgsub.sinks import VideoSink, hold_interrupts, open_mask_sink
+from bgsub.sinks import VideoSink, hold_interrupts, names_a_folder, open_mask_sink
 from bgsub.sources import VideoInfo, open_source
 
 PathLike = Union[str, "Path"]
@@ -438,7 +438,20 @@ def _plan(input_path: str, gt: Optional[PathLike], report_dir: Optional[Path]) -
         False, []
 
 
-def _check_report_dir(report_dir: Path, overwrite: bool) -> None:
+# Names that are files, not folders: `-o cmp.txt` most likely meant the report itself.
+_FILE_SUFFIXES = {".txt", ".csv", ".json", ".md", ".html", ".htm", ".pdf", ".png", ".jpg",
+                  ".mkv", ".avi", ".mp4", ".mov", ".webm"}
+
+
+def _check_report_dir(report_dir: PathLike, overwrite: bool) -> None:
+    """Create ``report_dir`` or check that it may be filled; raise :class:`OutputError` when it
+    holds results (without ``overwrite``), is a file, looks like a file name, or cannot be
+    made. ``report_dir`` as given: a trailing slash marks a dotted name as a folder."""
+    if Path(report_dir).suffix.lower() in _FILE_SUFFIXES and not names_a_folder(report_dir):
+        raise OutputError(
+            f"{report_dir}: the report goes in a folder (report.txt, .csv and .json are written "
+            "inside it); give a folder name such as cmp/")
+    report_dir = Path(report_dir)
     if report_dir.exists():
         if not report_dir.is_dir():
             raise OutputError(f"report folder {report_dir} exists and is not a folder")
@@ -771,7 +784,7 @@ def compare_methods(
         if job.gt is not None:
             open_ground_truth(job.gt, ignore_roi_bmp=ignore_roi)
     if out is not None:
-        _check_report_dir(out, overwrite)
+        _check_report_dir(report_dir, overwrite)
     source_options = dict(start=start, stop=stop, step=step, scale=scale, width=width)
 
     report = ComparisonReport(

@@ -123,7 +123,7 @@ def write_atomically(path: Path, data: bytes, *, what: str) -> None:
         raise OutputError(f"cannot write {what} {path}: {err.strerror or err}") from None
 
 
-def _names_a_folder(path: PathLike) -> bool:
+def names_a_folder(path: PathLike) -> bool:
     """True when ``path`` is an existing folder or ends in a path separator (``out.v2/``):
     :class:`Path` drops a trailing slash, so look at the text as given."""
     text = os.fspath(path)
@@ -161,7 +161,7 @@ def check_mask_output(path: PathLike, *, overwrite: bool = False) -> Path:
     suffix = output.suffix.lower()
     if suffix in MASK_VIDEO_CODECS:
         return check_video_output(output, overwrite=overwrite, codecs=MASK_VIDEO_CODECS)
-    if suffix and not _names_a_folder(path):
+    if suffix and not names_a_folder(path):
         # masks.txt, mask.png, masks.webm: a file was meant, and a folder of that name would
         # surprise. A dotted folder name is still fine when it exists or ends in a slash.
         raise OutputError(

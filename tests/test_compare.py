@@ -304,6 +304,20 @@ def test_api_refuses_existing_report_dir(sequence: Path, tmp_path: Path) -> None
         compare_methods(sequence, methods=["framediff"], report_dir=out, video=False)
 
 
+def test_report_dir_named_like_a_file_is_refused(sequence: Path, tmp_path: Path, capsys) -> None:
+    out = tmp_path / "cmp.txt"
+    assert main(["compare", str(sequence), "--methods", "framediff", "-o", str(out), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert "folder" in err and "Traceback" not in err
+    assert not out.exists()
+
+
+def test_dotted_report_dir_is_a_folder_when_it_says_so(sequence: Path, tmp_path: Path) -> None:
+    out = tmp_path / "cmp.json"  # a folder name with a dot: accepted with a trailing slash
+    compare_methods(sequence, methods=["framediff"], report_dir=f"{out}/", video=False)
+    assert (out / "report.json").is_file()
+
+
 def test_bad_roi_bmp_fails_before_any_output(tmp_path: Path, capsys) -> None:
     seq = write_sequence(tmp_path / "famA_one", roi=np.full((H, W + 8), 255, np.uint8))
     out = tmp_path / "out"

@@ -1,6 +1,6 @@
 """Layer 1 of the Object Semantic Hierarchy: what does not move with the camera is foreground.
 
-Two pieces of evidence, fused into one clean mask:
+Three pieces of evidence, fused into one clean mask:
 
 * :class:`CompensatedBackground`: per-pixel colour statistics (running mean and variance) kept in
   the *current* frame's coordinates: every frame the model is warped by the camera motion before
@@ -13,6 +13,10 @@ Two pieces of evidence, fused into one clean mask:
 * :func:`flow_violation_map`: local motion vectors (gated-RBM patches or tracked corners) that
   disagree with the motion the camera predicts for their position, splatted to a per-pixel map
   weighted by their reliability.
+* :func:`still_in_image_map`: pixels that the previous frame explains better unmoved than moved
+  by the camera: an object the camera follows stays put in the image. Combined with the flow
+  violation (the larger of the two), it reaches where patch motion cannot: relative motions
+  beyond the motion readout's range, and pixels too young for the background model.
 
 :func:`fuse_masks` combines them and thresholds, and cleans the mask (morphology, removal of blobs
 below ``min_area`` pixels, filling of the holes they enclose).
@@ -34,6 +38,7 @@ __all__ = [
     "BackgroundParams",
     "CompensatedBackground",
     "flow_violation_map",
+    "still_in_image_map",
     "fuse_masks",
     "clean_mask",
 ]
@@ -65,6 +70,11 @@ class BackgroundParams:
         Frames of history a pixel needs before it can be foreground.
     max_age : int
         Ages are capped here (only ``1 / (age + 1)`` depends on them).
+    young_score : float
+        The score of pixels younger than ``min_age``, which have no history to differ from.
+        Below 1, so they are foreground only where the local motion evidence boosts them
+        (:func:`fuse_masks`): an object standing where the background scrolls in is found by
+        its motion alone.
     """
 
     alpha: float = 0.1
@@ -76,6 +86,7 @@ class BackgroundParams:
     envelope: int = 1
     min_age: int = 1
     max_age: int = 255
+    young_score: float = 0.6
 
 
 class CompensatedBackground:
@@ -143,8 +154,8 @@ class CompensatedBackground:
         Returns
         -------
         (H, W) float32 >= 0; values > 1 differ by more than ``k_sigma`` std devs and
-        ``min_diff`` gray levels (the larger of the two ratios' minimum). 0 where the pixel is
-        younger than ``min_age``.
+        ``min_diff`` gray levels (the larger of the two ratios' minimum). ``young_score``
+        where the pixel is younger than ``min_age``.
         """
         p = self.params
         f = self._as_float(frame)
@@ -174,7 +185,7 @@ class CompensatedBackground:
             for c in range(2, ratio.shape[2]):
                 np.maximum(out, ratio[:, :, c], out=out)
         np.sqrt(out, out=out)
-        out[self.age < p.min_age] = 0.0
+        out[self.age < p.min_age] = p.young_score
         return out
 
     def update(self, frame: np.ndarray, fgmask: Optional[np.ndarray] = None,
@@ -262,6 +273,48 @@ def _warp(img: np.ndarray, matrix: np.ndarray, size: tuple, flags: int, border: 
     else:
         out = cv2.warpPerspective(img, m, size, flags=flags, borderMode=border, borderValue=0.0)
     return _channels(out, img.shape[2] if img.ndim == 3 else 1) if img.ndim == 3 else out
+
+
+def still_in_image_map(
+    prev: np.ndarray,
+    cur: np.ndarray,
+    matrix: np.ndarray,
+    *,
+    window: int = 7,
+    centre: float = 0.3,
+    width: float = 0.1,
+) -> np.ndarray:
+    """Where the current frame is better explained by *no* motion than by the camera's.
+
+    An object the camera follows stays put in the image while its background moves with the
+    camera. Per pixel, the mean absolute difference over a ``window`` square between ``cur``
+    and ``prev`` warped by the camera motion (``r_cam``) and between ``cur`` and ``prev`` as it
+    is (``r_id``) give ``s = (r_cam - r_id) / (r_cam + r_id + 4)`` in (-1, 1); the map is a
+    soft step of ``s`` at ``centre``. Where the camera barely moves the two agree and ``s`` is
+    near 0: the map is near 0 (no evidence).
+
+    Parameters
+    ----------
+    prev, cur : (H, W) uint8
+        Consecutive gray frames.
+    matrix : (3, 3) float64
+        The camera motion (previous -> current).
+
+    Returns
+    -------
+    (H, W) float32 in [0, 1]
+    """
+    h, w = cur.shape
+    warped = _warp(prev, matrix, (w, h), cv2.INTER_LINEAR, cv2.BORDER_REPLICATE)
+    k = (int(window), int(window))
+    r_cam = cv2.blur(cv2.absdiff(cur, warped), k).astype(np.float32)
+    r_id = cv2.blur(cv2.absdiff(cur, prev), k).astype(np.float32)
+    s = (r_cam - r_id) / (r_cam + r_id + np.float32(4.0))
+    s -= np.float32(centre)
+    s *= np.float32(-1.0 / width)
+    np.exp(np.clip(s, -60.0, 60.0), out=s)
+    s += np.float32(1.0)
+    return np.reciprocal(s, out=s)
 
 
 def flow_violation_map(

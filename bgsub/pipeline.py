@@ -37,6 +37,7 @@ from bgsub.foreground import (
     CompensatedBackground,
     flow_violation_map,
     fuse_masks,
+    still_in_image_map,
 )
 from bgsub.global_motion import GlobalMotion, apply_homography, fit_global_motion
 
@@ -194,6 +195,9 @@ class MovingCameraEngine(Engine):
         with the fitted motion (or more than 80 % differ) restarts the model.
     heal_below : float
         Differences where the violation map is below this are learnt at the normal rate.
+    still_cue : float
+        Weight of :func:`still_in_image_map` (an object the camera follows stays put in the
+        image); the violation map is the larger of the two (0 = flow violation only).
     threads : int
         OpenBLAS and OpenCV worker threads while a frame is processed (:class:`limited_threads`;
         0 = leave them as configured).
@@ -231,6 +235,7 @@ class MovingCameraEngine(Engine):
         violation_noise: float = 0.0,
         fill_holes: int = 5000,
         overlap: int = 1,
+        still_cue: float = 1.0,
     ) -> None:
         self.work_width = int(work_width)
         self.motion_model = motion_model
@@ -250,10 +255,12 @@ class MovingCameraEngine(Engine):
         self.cut_support = float(cut_support)
         self.threads = int(threads)
         self.overlap = int(overlap)
+        self.still_cue = float(still_cue)
         self.last_status = "ok"
         self._worker: Optional[concurrent.futures.ThreadPoolExecutor] = None
         # The previous frame as the front end keeps it (see _frame_data), working size.
         self._prev: Any = None
+        self._prev_gray: Optional[np.ndarray] = None
         # The background update of the last frame, (frame, learn_slowly, rate): deferred to the
         # next frame, where it runs alongside the motion front end (see _alongside).
         self._pending: Optional[tuple] = None
@@ -358,14 +365,22 @@ class MovingCameraEngine(Engine):
             status = f"fallback: {result.motion.reason}"
             matrix = self._prev_motion if self._prev_motion is not None else np.eye(3)
         violation: list = []  # the flow-violation map, made alongside the background's warp
+        prev_gray = self._prev_gray
 
         def make_violation() -> None:
             if self.flow_boost != 0.0 or self.flow_damp != 0.0:
                 vw = (result.weights if result.violation_weights is None
                       else result.violation_weights)
-                violation.append(flow_violation_map(
+                v = flow_violation_map(
                     result.points, result.disp, matrix, weights=vw, shape=gray.shape,
-                    threshold=self.violation_threshold, noise_scale=self.violation_noise))
+                    threshold=self.violation_threshold, noise_scale=self.violation_noise)
+                if self.still_cue > 0 and prev_gray is not None:
+                    # Either kind of motion evidence counts: the cue is near 0 where it has
+                    # none (a still camera, the background), so it never lowers the flow's.
+                    still = still_in_image_map(prev_gray, gray, matrix)
+                    still *= np.float32(self.still_cue)
+                    np.maximum(v, still, out=v)
+                violation.append(v)
 
         with self._alongside(make_violation):
             self.bg.warp(matrix)
@@ -394,6 +409,7 @@ class MovingCameraEngine(Engine):
             learn_slowly &= ~(violation < self.heal_below)
         self._pending = (work, learn_slowly, rate)
         self._prev = cur
+        self._prev_gray = gray
         if result.motion.ok:
             self._prev_motion = result.motion.matrix
         self.last_status = status
@@ -442,6 +458,7 @@ class MovingCameraEngine(Engine):
         self.bg.reset(work)
         self.bg.update(work)
         self._prev = cur if cur is not None else self._frame_data(gray)
+        self._prev_gray = gray
         self._prev_motion = None
 
     def get_background_image(self) -> Optional[np.ndarray]:
@@ -738,6 +755,8 @@ _COMMON = {
                          "neighbourhood (3 tolerates a 1-px misregistration)",
                       low=1, high=31),
     "min_age": Param(1, "frames of history a pixel needs before it can be foreground", low=0),
+    "young_score": Param(0.6, "score of pixels younger than min_age (below 1: foreground only "
+                              "where local motion evidence boosts it; 0 = never)", low=0),
     "flow_boost": Param(0.8, "where local motion violates the camera's, the background "
                              "difference is multiplied by up to 1 + this", low=0),
     "flow_damp": Param(0.8, "where local motion agrees with the camera's, it is multiplied by "
@@ -758,6 +777,9 @@ _COMMON = {
     "overlap": Param(1, "1 = update the background and prepare the frame for the next pair "
                         "in a second thread while the motion is measured (same masks, faster "
                         "on 2 or more cores); 0 = one thread", low=0, high=1),
+    "still_cue": Param(1.0, "weight of the evidence that a pixel stays put in the image while "
+                            "the camera moves (an object the camera follows; 0 = off)",
+                       low=0, high=1),
     "heal_below": Param(0.25, "background differences where the local motion agrees with the "
                               "camera (violation below this) are learnt at the normal rate "
                               "(ghost healing)", low=0),
@@ -767,7 +789,8 @@ _COMMON = {
 def _split(kwargs: dict) -> dict:
     bg = BackgroundParams(alpha=kwargs.pop("alpha"), fg_alpha=kwargs.pop("fg_alpha"),
                           k_sigma=kwargs.pop("k_sigma"), min_diff=kwargs.pop("min_diff"),
-                          envelope=kwargs.pop("envelope"), min_age=kwargs.pop("min_age"))
+                          envelope=kwargs.pop("envelope"), min_age=kwargs.pop("min_age"),
+                          young_score=kwargs.pop("young_score"))
     kwargs["background"] = bg
     return kwargs
 

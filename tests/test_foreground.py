@@ -9,6 +9,7 @@ from bgsub.foreground import (
     clean_mask,
     flow_violation_map,
     fuse_masks,
+    still_in_image_map,
 )
 
 
@@ -50,7 +51,25 @@ def test_uncovered_border_has_no_history_and_is_not_foreground():
     assert np.all(bg.age[:, -9:] == 0) and np.all(bg.age[:, :40] >= 1)
     new = first.copy()
     new[:, -10:] = 250  # new content scrolling in: different, but no history there
-    assert np.all(bg.score(new)[:, -9:] == 0)
+    young = bg.params.young_score
+    assert 0 < young < 1  # below the decision: only motion evidence can make it foreground
+    assert np.all(bg.score(new)[:, -9:] == np.float32(young))
+    assert not fuse_masks(bg.score(new)).any()
+
+
+def test_young_pixels_are_foreground_only_with_motion_evidence():
+    bg = CompensatedBackground(BackgroundParams())
+    first = np.full((50, 60), 100, np.uint8)
+    bg.reset(first)
+    bg.update(first)
+    bg.warp(np.array([[1, 0, -20.0], [0, 1, 0], [0, 0, 1]]))  # a 20-px band without history
+    score = bg.score(first)
+    violation = np.full(score.shape, 0.5, np.float32)
+    violation[:, 30:] = 1.0  # the local motion strongly violates the camera's right of x=30
+    mask = fuse_masks(score, violation, flow_boost=1.5, flow_damp=0.2, min_area=0)
+    assert mask[:, -19:].all()  # young and violating
+    assert not mask[:, 30:40].any()  # violating but matching its history
+    assert not fuse_masks(score, None, min_area=0).any()  # young without evidence
 
 
 def test_object_on_static_background_is_found():
@@ -169,3 +188,30 @@ def test_fusion_fills_the_inside_of_an_object_seen_only_at_its_outline():
     score[16:44, 16:44] = 0.0  # a flat interior that matches the background it covered
     mask = fuse_masks(score, min_area=1, close=0, fill_holes=5000)
     assert mask[10:50, 10:50].all() and not mask[:10].any()
+
+
+def _gray_view(world, x0):
+    return cv2.cvtColor(_view(world, x0), cv2.COLOR_BGR2GRAY)
+
+
+def test_still_in_image_map_marks_what_the_camera_follows():
+    world = _scene()
+    thing = cv2.cvtColor(_scene(seed=7), cv2.COLOR_BGR2GRAY)[:40, :40]
+    prev, cur = _gray_view(world, 0.0), _gray_view(world, 4.0)
+    for frame in (prev, cur):  # the camera pans, the object stays put in the image
+        frame[40:80, 60:100] = thing
+    pan = np.array([[1, 0, -4.0], [0, 1, 0], [0, 0, 1]])
+    still = still_in_image_map(prev, cur, pan)
+    assert still.dtype == np.float32 and still.shape == cur.shape
+    assert still[44:76, 64:96].mean() > 0.9
+    background = np.ones(cur.shape, bool)
+    background[30:90, 50:110] = False  # away from the object's outline (window 7)
+    background[:, -8:] = False  # and from the border the pan uncovers
+    assert still[background].mean() < 0.05
+
+
+def test_still_in_image_map_has_no_opinion_without_camera_motion():
+    world = _scene()
+    prev, cur = _gray_view(world, 0.0), _gray_view(world, 0.0)
+    cur[40:80, 60:100] = 255 - cur[40:80, 60:100]  # a change, but nothing to tell apart
+    assert still_in_image_map(prev, cur, np.eye(3)).max() < 0.1

@@ -76,7 +76,32 @@ def _partial_path(path: Path) -> Path:
     return path.with_name(f".{path.stem}.partial{path.suffix}")
 
 
+def _why_not_writable(path: Path) -> str:
+    """``"cannot create a file there (reason); "`` when the system refuses a new file at
+    ``path`` (which must not exist), else ``""``: a writer library's failure names no cause,
+    and a folder can refuse files although it looks writable (``/proc``)."""
+    try:
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+    except OSError as err:
+        return f"cannot create a file there ({err.strerror or err}); "
+    os.close(fd)
+    with contextlib.suppress(OSError):
+        os.unlink(path)
+    return ""
+
+
+def _output_given(path: PathLike) -> str:
+    """``path`` as text; :class:`OutputError` when it is empty, which ``Path`` would quietly
+    read as the current folder."""
+    text = os.fspath(path)
+    if not text.strip():
+        raise OutputError("the output path is empty; give a file or folder name")
+    return text
+
+
 def _check_writable_folder(folder: Path, output: Path) -> None:
+    if folder.exists() and not folder.is_dir():
+        raise OutputError(f"{output}: {folder} is not a folder")
     if not folder.is_dir():
         raise OutputError(f"{output}: the folder {folder} does not exist")
     if not os.access(folder, os.W_OK | os.X_OK):
@@ -91,7 +116,7 @@ def check_file_output(path: PathLike, *, overwrite: bool = False) -> Path:
     """Check that a file (a report, a model) can be written at ``path``; return it as a
     :class:`Path`. :class:`OutputError` when it is a folder, exists (without ``overwrite``),
     or its folder is missing or read-only. Nothing is written."""
-    output = Path(path)
+    output = Path(_output_given(path))
     if output.is_dir():
         raise OutputError(f"{output}: is a folder; give a file name")
     if output.exists() and not overwrite:
@@ -139,7 +164,7 @@ def check_video_output(path: PathLike, *, overwrite: bool = False,
     is missing or read-only. Nothing is written.
     """
     codecs = PICTURE_VIDEO_CODECS if codecs is None else codecs
-    output = Path(path)
+    output = Path(_output_given(path))
     if output.suffix.lower() not in codecs:
         known = ", ".join(sorted(codecs))
         raise OutputError(f"{output}: cannot write a video with this extension (use {known})")
@@ -157,7 +182,7 @@ def check_mask_output(path: PathLike, *, overwrite: bool = False) -> Path:
     an empty or unrelated folder is fine. Raises :class:`OutputError` otherwise (see
     :func:`check_video_output`).
     """
-    output = Path(path)
+    output = Path(_output_given(path))
     suffix = output.suffix.lower()
     if suffix in MASK_VIDEO_CODECS:
         return check_video_output(output, overwrite=overwrite, codecs=MASK_VIDEO_CODECS)
@@ -222,8 +247,8 @@ class _VideoFile:
             writer.release()
             with contextlib.suppress(OSError):
                 self._temp.unlink()
-            raise OutputError(f"{self.path}: OpenCV cannot open a {self.codec} video writer "
-                              f"for {width}x{height} frames here")
+            raise OutputError(f"{self.path}: {_why_not_writable(self._temp)}OpenCV cannot open "
+                              f"a {self.codec} video writer for {width}x{height} frames here")
         self._writer = writer
         self.size = (width, height)  # of the pictures written; the file's is padded to even
 

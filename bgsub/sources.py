@@ -399,6 +399,9 @@ def open_source(path: PathLike, *, start: int = 0, stop: Optional[int] = None, s
     """
     _check_range(start, stop, step)
     text = os.fspath(path)
+    if not text.strip():  # Path("") is the current folder: never what was meant
+        raise InputError("the input path is empty; give a video file, an image folder or a "
+                         "glob pattern")
     location = Path(text)
     if location.is_dir():
         backend = _folder_backend(location)

@@ -312,6 +312,18 @@ def test_report_dir_named_like_a_file_is_refused(sequence: Path, tmp_path: Path,
     assert not out.exists()
 
 
+def test_an_empty_report_dir_is_refused(sequence: Path, capsys) -> None:
+    assert main(["compare", str(sequence), "--methods", "framediff", "-o", "", "-q"]) == 2
+    assert "empty" in capsys.readouterr().err
+
+
+def test_an_empty_methods_list_is_refused_not_read_as_all(sequence: Path, tmp_path: Path,
+                                                           capsys) -> None:
+    assert main(["compare", str(sequence), "-m", "", "-o", str(tmp_path / "o"), "-q"]) == 2
+    assert "empty" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
 def test_dotted_report_dir_is_a_folder_when_it_says_so(sequence: Path, tmp_path: Path) -> None:
     out = tmp_path / "cmp.json"  # a folder name with a dot: accepted with a trailing slash
     compare_methods(sequence, methods=["framediff"], report_dir=f"{out}/", video=False)

@@ -384,3 +384,25 @@ def test_ctrl_c_while_a_frame_is_written_reaches_every_sink_first(tmp_path, monk
             process(frames, _Drawing(), masks, vis=vis, flow_vis=flow)
     assert [len(_read_video(tmp_path / name)) for name in ("m.mkv", "v.mkv", "f.mkv")] == [3] * 3
     assert signal.getsignal(signal.SIGINT) is before
+
+
+@pytest.mark.parametrize("check", [sinks.check_file_output, sinks.check_video_output,
+                                   sinks.check_mask_output])
+def test_an_empty_output_path_is_refused_not_read_as_the_current_folder(check):
+    with pytest.raises(OutputError, match="empty"):
+        check("")
+
+
+def test_an_output_under_a_file_names_the_file_as_not_a_folder(tmp_path):
+    blocker = tmp_path / "plain.txt"
+    blocker.write_text("not a folder")
+    with pytest.raises(OutputError, match="plain.txt is not a folder"):
+        sinks.check_video_output(blocker / "masks.mkv")
+    with pytest.raises(OutputError, match="plain.txt is not a folder"):
+        sinks.check_mask_output(blocker / "sub" / "masks")
+
+
+def test_a_refused_file_is_explained_with_the_systems_reason(tmp_path):
+    assert "No such file" in sinks._why_not_writable(tmp_path / "missing" / "x.mkv")
+    assert sinks._why_not_writable(tmp_path / "x.mkv") == ""
+    assert list(tmp_path.iterdir()) == []  # the probe leaves nothing behind

@@ -297,3 +297,9 @@ def test_whole_jpegs_read_as_before(tmp_path):
     _, got = _read_all(folder)
     for (_, image), path in zip(got, sorted(folder.iterdir())):
         np.testing.assert_array_equal(image, cv2.imread(str(path)))
+
+
+@pytest.mark.parametrize("path", ["", "  "])
+def test_an_empty_input_path_is_refused_not_read_as_the_current_folder(path):
+    with pytest.raises(InputError, match="empty"):
+        open_source(path)

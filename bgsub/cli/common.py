@@ -38,7 +38,8 @@ def add_output_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--overwrite", action="store_true",
                         help="replace outputs that already exist (refused otherwise)")
     parser.add_argument("-q", "--quiet", action="store_true",
-                        help="no progress bar and no summary")
+                        help="no progress bar and no notes on stderr (results such as "
+                             "a report table are still printed)")
 
 
 def progress(iterable: Iterable[Any], *, total: Optional[int] = None, desc: str = "",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 from typing import Any, Dict, List
 
 from bgsub.cli.common import add_output_options, add_source_options, note, source_kwargs
@@ -32,7 +33,7 @@ _EPILOG = """\
 examples:
   bgsub compare data/real/BMS26_cars1 --methods grbm,compensated,mog2,knn -o cmp/ --skip-first
   bgsub compare data/real -o cmp_all/ --skip-first --no-video       every sequence, family means
-  bgsub compare data/real/CDnet2014_cameraJitter_traffic -o cmp_traffic/ --methods mog2,grbm \
+  bgsub compare data/real/CDnet2014_cameraJitter_traffic -o cmp_traffic/ --methods mog2,grbm \\
       --skip-first --no-roi-bmp                 (traffic's ROI.bmp has the wrong size)
   bgsub compare clip.mp4 --gt clip_gt/ -o cmp/ --param mog2.history=200 --max-frames 100
   bgsub compare scenes/pan_s0 -o cmp/ --width 160 --masks none     quick look, no masks written
@@ -129,7 +130,7 @@ def run(args: argparse.Namespace) -> int:
     from bgsub.compare import compare_methods
     from bgsub.engines import available_engines, get_engine_spec
 
-    if args.methods:
+    if args.methods is not None:  # -m "" is a mistake, not "all"
         methods = parse_methods(args.methods)
         for name in methods:
             get_engine_spec(name)  # unknown names: one line listing the available ones
@@ -146,6 +147,6 @@ def run(args: argparse.Namespace) -> int:
         tile_height=args.tile_height,
         overwrite=args.overwrite, quiet=args.quiet, **source_kwargs(args),
     )
-    print(report.to_text())
-    note(f"report written to {args.output}/report.txt (.csv, .json)", quiet=args.quiet)
+    print(report.to_text())  # the result itself: printed with --quiet too
+    note(f"report written to {Path(args.output) / 'report.txt'} (.csv, .json)", quiet=args.quiet)
     return 0

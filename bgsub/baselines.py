@@ -21,7 +21,7 @@ from typing import Any, Optional
 import cv2
 import numpy as np
 
-from bgsub.engines import Engine, Param, register_engine
+from bgsub.engines import Engine, Param, opencv_keywords, register_engine
 from bgsub.errors import InputError
 
 # OpenCV's non-shadow foreground value; everything at or below SHADOW_CUT (shadows are 127) is
@@ -96,6 +96,7 @@ class OpenCVSubtractor(Engine):
         self.subtractor = subtractor
         self._started = False  # OpenCV's KNN crashes on getBackgroundImage() before any frame
 
+    @opencv_keywords
     def apply(
         self,
         image: np.ndarray,
@@ -117,33 +118,34 @@ class OpenCVSubtractor(Engine):
 
 
 _MOG2_PARAMS = {
-    "history": Param(500, "number of recent frames that shape the background model"),
+    "history": Param(500, "number of recent frames that shape the background model", low=1),
     "var_threshold": Param(
         16.0, "squared Mahalanobis distance above which a pixel is foreground (higher: fewer "
-        "detections)"
+        "detections)", above=0
     ),
     "detect_shadows": Param(
         False, "detect shadows (OpenCV marks them 127; bgsub maps them to background); slower"
     ),
     "background_ratio": Param(
         0.9, "fraction of the model weight that counts as background: a foreground value "
-        "that stays for about background_ratio*history frames becomes background"
+        "that stays for about background_ratio*history frames becomes background",
+        above=0, high=1
     ),
-    "n_mixtures": Param(5, "maximum number of Gaussian components per pixel"),
+    "n_mixtures": Param(5, "maximum number of Gaussian components per pixel", low=1),
     "var_threshold_gen": Param(
         9.0, "squared Mahalanobis distance under which a value updates an existing component "
-        "instead of creating a new one"
+        "instead of creating a new one", above=0
     ),
-    "var_init": Param(15.0, "initial variance of a new component"),
-    "var_min": Param(4.0, "lower bound on a component's variance"),
-    "var_max": Param(75.0, "upper bound on a component's variance"),
+    "var_init": Param(15.0, "initial variance of a new component", above=0),
+    "var_min": Param(4.0, "lower bound on a component's variance", above=0),
+    "var_max": Param(75.0, "upper bound on a component's variance (at least var_min)", above=0),
     "complexity_reduction_threshold": Param(
         0.05, "evidence (in samples) a component needs to survive; 0 gives the standard "
-        "Stauffer-Grimson mixture"
+        "Stauffer-Grimson mixture", low=0
     ),
     "shadow_threshold": Param(
         0.5, "a pixel is shadow if it is a darker version of the background by at most this "
-        "factor (0.5: twice as dark is not a shadow)"
+        "factor (0.5: twice as dark is not a shadow; below 1)", above=0, high=1
     ),
 }
 
@@ -168,20 +170,12 @@ def make_mog2(
     shadow_threshold: float,
 ) -> OpenCVSubtractor:
     """Build the ``mog2`` engine (parameters as in :data:`_MOG2_PARAMS`, OpenCV defaults)."""
-    _require(history >= 1, f"mog2: history must be >= 1, not {history}")
-    _require(var_threshold > 0, f"mog2: var_threshold must be > 0, not {var_threshold}")
-    _require(0 < background_ratio <= 1,
-             f"mog2: background_ratio must be in (0, 1], not {background_ratio}")
-    _require(n_mixtures >= 1, f"mog2: n_mixtures must be >= 1, not {n_mixtures}")
-    _require(0 < var_min <= var_max,
-             f"mog2: need 0 < var_min <= var_max, not var_min={var_min}, var_max={var_max}")
-    _require(var_init > 0, f"mog2: var_init must be > 0, not {var_init}")
-    _require(var_threshold_gen > 0,
-             f"mog2: var_threshold_gen must be > 0, not {var_threshold_gen}")
-    _require(complexity_reduction_threshold >= 0,
-             "mog2: complexity_reduction_threshold must be >= 0")
-    _require(0 < shadow_threshold < 1,
-             f"mog2: shadow_threshold must be in (0, 1), not {shadow_threshold}")
+    # Single-value bounds are checked from _MOG2_PARAMS when the engine is made; these involve
+    # two parameters or an open end that Param cannot state.
+    _require(var_min <= var_max,
+             f"mog2: parameter 'var_max' must be at least var_min={var_min:g}, not {var_max!r}")
+    _require(shadow_threshold < 1,
+             f"mog2: parameter 'shadow_threshold' must be below 1, not {shadow_threshold!r}")
     sub = cv2.createBackgroundSubtractorMOG2(
         history=int(history), varThreshold=float(var_threshold), detectShadows=bool(detect_shadows)
     )
@@ -197,26 +191,27 @@ def make_mog2(
 
 
 _KNN_PARAMS = {
-    "history": Param(500, "number of recent frames that shape the background model"),
+    "history": Param(500, "number of recent frames that shape the background model", low=1),
     "dist2_threshold": Param(
         400.0, "squared colour distance (summed over channels) under which a stored sample "
-        "matches the pixel (higher: fewer detections)"
+        "matches the pixel (higher: fewer detections)", above=0
     ),
     "detect_shadows": Param(
         False, "detect shadows (OpenCV marks them 127; bgsub maps them to background); slower"
     ),
-    "n_samples": Param(7, "number of samples stored per pixel"),
+    "n_samples": Param(7, "number of samples stored per pixel", low=1),
     "knn_samples": Param(
-        2, "k: how many stored samples must match for the pixel to be background"
+        2, "k: how many stored samples must match for the pixel to be background (at most "
+        "n_samples)", low=1
     ),
     "shadow_threshold": Param(
         0.5, "a pixel is shadow if it is a darker version of the background by at most this "
-        "factor (0.5: twice as dark is not a shadow)"
+        "factor (0.5: twice as dark is not a shadow; below 1)", above=0, high=1
     ),
     "seed": Param(
         0, "seed given to OpenCV's random generator (cv2.setRNGSeed) when the engine is "
         "created, for reproducible masks: KNN replaces stored samples at random; -1 leaves "
-        "the generator alone"
+        "the generator alone", low=-1
     ),
 }
 
@@ -243,18 +238,15 @@ def make_knn(
     frames) unless it is seeded; ``seed`` does that once, here. Code that uses OpenCV's
     generator between frames (or a second KNN engine fed in alternation) still shifts it.
     """
-    _require(history >= 1, f"knn: history must be >= 1, not {history}")
-    _require(dist2_threshold > 0, f"knn: dist2_threshold must be > 0, not {dist2_threshold}")
-    _require(n_samples >= 1, f"knn: n_samples must be >= 1, not {n_samples}")
-    _require(1 <= knn_samples <= n_samples,
-             f"knn: knn_samples must be in [1, n_samples={n_samples}], not {knn_samples}")
-    _require(0 < shadow_threshold < 1,
-             f"knn: shadow_threshold must be in (0, 1), not {shadow_threshold}")
+    # As for mog2: what Param cannot state.
+    _require(knn_samples <= n_samples, f"knn: parameter 'knn_samples' must be at most "
+                                       f"n_samples={n_samples}, not {knn_samples!r}")
+    _require(shadow_threshold < 1,
+             f"knn: parameter 'shadow_threshold' must be below 1, not {shadow_threshold!r}")
     sub = cv2.createBackgroundSubtractorKNN(
         history=int(history), dist2Threshold=float(dist2_threshold),
         detectShadows=bool(detect_shadows),
     )
-    _require(seed >= -1, f"knn: seed must be >= 0 (or -1: do not seed), not {seed}")
     if seed >= 0:
         cv2.setRNGSeed(int(seed))
     sub.setNSamples(int(n_samples))
@@ -290,6 +282,7 @@ class FrameDifference(Engine):
         self._previous_gray: Optional[np.ndarray] = None
         self._previous_image: Optional[np.ndarray] = None
 
+    @opencv_keywords
     def apply(
         self,
         image: np.ndarray,
@@ -322,14 +315,14 @@ class FrameDifference(Engine):
     "framediff",
     "difference to the previous frame, thresholded; static camera only",
     params={
-        "threshold": Param(25, "grey-level change (0-255) a pixel must exceed to be foreground"),
+        "threshold": Param(25, "grey-level change (0-255) a pixel must exceed to be foreground",
+                           low=0, high=254),
         "morph_size": Param(
-            0, "side of an elliptic opening that removes speckle noise (0 or 1: off)"
+            0, "side of an elliptic opening that removes speckle noise (0 or 1: off)",
+            low=0, high=31
         ),
     },
 )
 def make_framediff(*, threshold: int, morph_size: int) -> FrameDifference:
     """Build the ``framediff`` engine."""
-    _require(0 <= threshold < 255, f"framediff: threshold must be in [0, 254], not {threshold}")
-    _require(0 <= morph_size <= 31, f"framediff: morph_size must be in [0, 31], not {morph_size}")
     return FrameDifference(threshold=threshold, morph_size=morph_size)

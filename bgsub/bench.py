@@ -126,7 +126,7 @@ class BenchReport:
             header += "  | peak RSS MiB (growth)"
         lines = [
             f"bgsub bench: {self.frames} frames of {self.width}x{self.height}, "
-            f"{self.repeats} repeats; clip: {self.clip}",
+            f"{self.repeats} {'run' if self.repeats == 1 else 'runs'} per method; clip: {self.clip}",
             self.note,
             "",
             header,

@@ -13,6 +13,7 @@ Engines register themselves with :func:`register_engine`; the CLI (``bgsub run -
 
 from __future__ import annotations
 
+import functools
 import importlib
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
@@ -30,8 +31,25 @@ _BUILTIN_MODULES = ("bgsub.baselines", "bgsub.pipeline")
 DEFAULT_METHOD = "grbm"
 
 
+def opencv_keywords(apply: Callable[..., np.ndarray]) -> Callable[..., np.ndarray]:
+    """Decorate an engine's ``apply`` so it also takes OpenCV's keyword spelling:
+    ``apply(frame, learningRate=0.01)`` as in code written for ``cv2.BackgroundSubtractor``."""
+
+    @functools.wraps(apply)
+    def wrapper(self: "Engine", image: np.ndarray, fgmask: Optional[np.ndarray] = None,
+                learning_rate: float = -1.0, *,
+                learningRate: Optional[float] = None) -> np.ndarray:  # noqa: N803 (OpenCV's)
+        if learningRate is not None:
+            learning_rate = learningRate
+        return apply(self, image, fgmask, learning_rate)
+
+    return wrapper
+
+
 class Engine(ABC):
-    """A background subtractor with OpenCV's ``BackgroundSubtractor`` shape."""
+    """A background subtractor with OpenCV's ``BackgroundSubtractor`` shape.
+
+    Implementations decorate ``apply`` with :func:`opencv_keywords`."""
 
     @abstractmethod
     def apply(
@@ -69,6 +87,10 @@ class Engine(ABC):
 _C_INT_MAX = 2**31 - 1
 
 
+_KIND_NAMES = {bool: "yes/no (1/0, true/false, on/off)", int: "an integer", float: "a number",
+               str: "text"}
+
+
 @dataclass(frozen=True)
 class Param:
     """One tunable parameter of an engine: its default (which also fixes its type) and meaning.
@@ -100,7 +122,8 @@ class Param:
             else:
                 value = text
         except ValueError:
-            raise InputError(f"parameter {name!r} takes a {kind.__name__}, not {text!r}") from None
+            raise InputError(f"parameter {name!r} takes {_KIND_NAMES.get(kind, kind.__name__)}, "
+                             f"not {text!r}") from None
         self.check(name, value)
         return value
 
@@ -142,7 +165,10 @@ class EngineSpec:
             )
         values = {name: p.default for name, p in self.params.items()}
         for name, value in params.items():
-            self.params[name].check(name, value)
+            try:
+                self.params[name].check(name, value)
+            except InputError as err:
+                raise InputError(f"{self.name}: {err}") from None
             values[name] = value
         return self.factory(**values)
 
@@ -210,5 +236,8 @@ def parse_params(name: str, pairs: Iterable[str]) -> Dict[str, Any]:
         if key not in spec.params:
             known = ", ".join(spec.params) or "none"
             raise InputError(f"method {name!r} has no parameter {key!r} (its parameters: {known})")
-        parsed[key] = spec.params[key].parse(key, text)
+        try:
+            parsed[key] = spec.params[key].parse(key, text)
+        except InputError as err:
+            raise InputError(f"{name}: {err}") from None
     return parsed

@@ -29,7 +29,7 @@ from typing import Any, Callable, Iterator, Optional
 import cv2
 import numpy as np
 
-from bgsub.engines import Engine, Param, register_engine
+from bgsub.engines import Engine, Param, opencv_keywords, register_engine
 from bgsub.errors import InputError
 from bgsub.flowfield import FramePyramid, estimate_flow, prepare_first_frame
 from bgsub.foreground import (
@@ -55,6 +55,9 @@ __all__ = ["MovingCameraEngine", "GrbmEngine", "CompensatedEngine", "MotionResul
 # (default 1) BLAS and OpenCV threads and restore the previous settings afterwards. The settings
 # are process-wide: engines stepped concurrently from several Python threads should all use the
 # same ``threads`` value.
+
+# The narrowest working frame: a few 13x13 patches across, so a motion can be read at all.
+MIN_WORK_WIDTH = 32
 
 _BLAS_SYMBOLS = (
     ("scipy_openblas_set_num_threads64_", "scipy_openblas_get_num_threads64_"),
@@ -237,6 +240,10 @@ class MovingCameraEngine(Engine):
         overlap: int = 1,
         still_cue: float = 1.0,
     ) -> None:
+        if 0 < work_width < MIN_WORK_WIDTH:
+            # Refused here, before any output is opened, rather than at the first frame.
+            raise InputError(f"{self.name}: parameter 'work_width' must be 0 (the input's width) "
+                             f"or at least {MIN_WORK_WIDTH}, not {work_width!r}")
         self.work_width = int(work_width)
         self.motion_model = motion_model
         self.ransac_threshold = float(ransac_threshold)
@@ -315,6 +322,7 @@ class MovingCameraEngine(Engine):
 
     # ------------------------------------------------------------------ Engine API
 
+    @opencv_keywords
     def apply(self, image: np.ndarray, fgmask: Optional[np.ndarray] = None,
               learning_rate: float = -1.0) -> np.ndarray:
         image = _check_image(image)
@@ -767,7 +775,7 @@ _COMMON = {
     "violation_noise": Param(0.0, "... or this many robust standard deviations of the local "
                                   "vectors' disagreement, if more (0 = fixed threshold)", low=0),
     "min_area": Param(30, "blobs smaller than this (working-size pixels) are dropped", low=0),
-    "close": Param(9, "morphological closing size (0 = none)", low=0),
+    "close": Param(9, "morphological closing size (0 = none)", low=0, high=99),
     "fill_holes": Param(5000, "holes enclosed by a foreground blob, up to this many "
                               "working-size pixels, are filled (0 = none)", low=0),
     "threshold": Param(1.0, "foreground where the fused score exceeds this (lower = more "

@@ -242,3 +242,37 @@ def test_knn_is_reproducible_when_seeded():
     first = run(0)
     cv2.randu(np.zeros(100), 0, 1)  # other code using OpenCV's generator in between
     np.testing.assert_array_equal(first, run(0))
+
+
+@pytest.mark.parametrize("name", ["mog2", "knn", "framediff"])
+def test_every_numeric_parameter_states_its_range(name):
+    """`bgsub methods` shows a parameter's range from its Param bounds: a bound checked only
+    inside the factory would be enforced but never shown."""
+    from bgsub.engines import get_engine_spec
+
+    for key, p in get_engine_spec(name).params.items():
+        if isinstance(p.default, (int, float)) and not isinstance(p.default, bool):
+            assert (p.low, p.high, p.above) != (None, None, None), key
+
+
+
+def test_apply_takes_opencvs_keyword_spelling():
+    """Code written for cv2 passes ``learningRate=``; it must reach the model as
+    ``learning_rate=`` does (and change the masks, so it is not silently dropped)."""
+    rng = np.random.default_rng(3)
+    frames = [_background()] * 4 + [rng.integers(0, 256, (H, W, 3), np.uint8) for _ in range(3)]
+    cv_style, ours, default = create_engine("mog2"), create_engine("mog2"), create_engine("mog2")
+    changed = False
+    for frame in frames:
+        expected = ours.apply(frame, learning_rate=0.0)
+        np.testing.assert_array_equal(cv_style.apply(frame, learningRate=0.0), expected)
+        changed |= not np.array_equal(default.apply(frame), expected)
+    assert changed
+
+
+@pytest.mark.parametrize("name", ["mog2", "knn", "framediff", "grbm", "compensated"])
+def test_every_engine_takes_opencvs_keyword_spelling(name):
+    import inspect
+
+    apply = type(create_engine(name)).apply
+    assert "learningRate" in inspect.signature(apply, follow_wrapped=False).parameters

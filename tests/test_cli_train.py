@@ -111,6 +111,13 @@ def test_unwritable_output_folder_is_refused_before_training(tmp_path, capsys, m
     assert "is not writable" in _one_error_line(capsys)
 
 
+def test_output_without_the_npz_extension_is_refused_before_training(tmp_path, capsys,
+                                                                     no_training):
+    assert main(_tiny(tmp_path / "model.txt")) == 2
+    assert "ends in .npz" in _one_error_line(capsys)
+    assert not (tmp_path / "model.txt").exists()
+
+
 @pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs a FIFO")
 def test_output_that_is_not_a_regular_file_is_never_replaced(tmp_path, capsys, no_training):
     fifo = tmp_path / "pipe"

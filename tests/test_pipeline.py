@@ -185,6 +185,9 @@ def test_engines_registered_with_documented_params():
     ("compensated", {"max_corners": 0}, "'max_corners' must be at least 1"),
     ("compensated", {"lk_window": 100_000}, "'lk_window' must be at most 255"),
     ("mog2", {"history": 10**11}, "'history' is too large"),  # OpenCV takes a C int
+    ("compensated", {"close": 10**6}, "'close' must be at most 99"),  # not an allocation error
+    ("grbm", {"work_width": 5}, "'work_width' must be 0 .* or at least 32"),
+    ("mog2", {"var_min": 0.0}, "mog2: parameter 'var_min' must be greater than 0"),
 ])
 def test_out_of_range_parameters_are_refused_when_the_engine_is_made(name, params, words):
     with pytest.raises(InputError, match=words):

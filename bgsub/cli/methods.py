@@ -106,6 +106,7 @@ def run(args: argparse.Namespace) -> int:
         default = None
     # `is not None`: an empty name (say, an unset shell variable) is an unknown method, not "all".
     specs = [get_engine_spec(args.name)] if args.name is not None else available_engines()
+    specs.sort(key=lambda spec: spec.name != default)  # the default first; stable otherwise
     entries = [describe(s, is_default=s.name == default) for s in specs]
     if args.json:
         print(json.dumps(entries, indent=2))

@@ -238,6 +238,9 @@ def _check_output(args: argparse.Namespace, kind: str) -> Path:
                           f"model file (give a file name, e.g. {out / 'model.npz'})")
     if out.exists() and not out.is_file():
         raise OutputError(f"{out}: is not a regular file")  # e.g. /dev/null: never replace it
+    if out.suffix.lower() != ".npz":
+        # load_model() reads .npz files; a model saved as mine.txt would be hard to find again.
+        raise OutputError(f"{out}: a model file ends in .npz (e.g. {out.with_suffix('.npz')})")
     check_file_output(out, overwrite=args.overwrite)
     if kind == "video":
         check_distinct(args.data, [("-o", out)])

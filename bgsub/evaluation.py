@@ -31,13 +31,27 @@ Ground truth (a dataset)
 
 Predictions
     A folder of ``binNNNNNN.png`` masks (same numbering as the ground truth; ``.bmp``/``.jpg``/
-    ``.tif`` are read too) or a mask video, whose frame ``i`` (0-based) is frame number ``i + 1``;
-    or, from Python, an iterable of ``(frame_number, mask)`` pairs. A pixel is foreground when its
-    value is > 127 (colour masks are converted to grey first). For a dataset, the prediction of
+    ``.tif`` are read too) or a mask video, whose frame ``k`` (0-based) is frame number
+    ``video_start + k * video_step + 1``; or, from Python, an iterable of ``(frame_number, mask)``
+    pairs. A mask video carries no frame numbers, so ``video_start``/``video_step``/``video_stop``
+    (``bgsub eval --start/--step/--stop``) say which input frames it holds, with the meaning of
+    ``bgsub run``'s options of those names (0-based, ``range(start, stop, step)``; defaults 0, 1,
+    the end): the same flags that wrote it. Only the frames they cover are evaluated, and
+    ``skip_first`` leaves out the video's first frame. Folders and Python masks name their frames
+    themselves: giving these options with them is an error (ignoring them would hide that the
+    user expected something to shift). A pixel is foreground when its value is > 127 (colour
+    masks are converted to grey first). For a dataset, the prediction of
     the sequence at ``GT_ROOT/REL`` (``REL`` = its path relative to the root, e.g.
     ``cameraJitter/traffic``; ``NAME`` = its folder name) is the first that exists of
     ``PRED_ROOT/REL/``, ``PRED_ROOT/NAME/``, ``PRED_ROOT/REL.<ext>``, ``PRED_ROOT/NAME.<ext>``
     with ``<ext>`` a video extension (:data:`VIDEO_EXTENSIONS`).
+
+Prediction size
+    ``bgsub run --width/--scale`` writes masks at the processed size. A prediction whose size is
+    a uniform scale of the ground truth's (:func:`is_uniform_scale`: one factor explains both
+    sides to within the rounding of :func:`bgsub.sources.output_size`) is brought to the ground
+    truth's size with nearest-neighbour interpolation (masks stay 0/255), and the result notes
+    it once. Any other size is an :class:`InputError` naming both sizes.
 
 Which pixels and frames count
     Frames with a ground-truth png inside the temporal ROI (all of them without
@@ -252,6 +266,28 @@ def _size(image: np.ndarray) -> str:
     return f"{image.shape[1]}x{image.shape[0]}"
 
 
+def is_uniform_scale(size: Tuple[int, int], reference: Tuple[int, int]) -> bool:
+    """Whether ``size`` could be ``reference`` resized by one factor (``run --scale/--width``).
+
+    :func:`bgsub.sources.output_size` rounds each side of ``reference * s`` to the nearest
+    integer, so ``size`` qualifies when some factor ``s`` has ``|w_ref * s - w| <= 1/2`` and
+    ``|h_ref * s - h| <= 1/2``: the two intervals of ``s`` overlap. Computed in integers (the
+    inequalities times 2 and cross-multiplied) so a boundary case is not lost to rounding.
+
+    Parameters
+    ----------
+    size, reference : (width, height) of int
+        Sizes in pixels, each side >= 1.
+
+    Returns
+    -------
+    bool (also True when the sizes are equal).
+    """
+    (w, h), (w_ref, h_ref) = size, reference
+    return ((2 * w - 1) * h_ref <= (2 * h + 1) * w_ref
+            and (2 * h - 1) * w_ref <= (2 * w + 1) * h_ref)
+
+
 # --------------------------------------------------------------------------------------------
 # Ground truth
 # --------------------------------------------------------------------------------------------
@@ -457,6 +493,53 @@ def _as_uint8_mask(mask: Any, number: int) -> np.ndarray:
     return mask
 
 
+@dataclass(frozen=True)
+class VideoFrames:
+    """Which input frames a mask video holds: those ``bgsub run --start --step --stop`` read.
+
+    Frame ``k`` (0-based) of the video is the mask of input index ``start + k * step`` (0-based),
+    i.e. of frame number ``start + k * step + 1``; the indices are ``range(start, stop, step)``
+    (``stop=None``: up to the end), as in :func:`bgsub.sources.open_source`.
+    """
+
+    start: int = 0
+    step: int = 1
+    stop: Optional[int] = None
+
+    def __post_init__(self) -> None:
+        # The messages name the CLI flags: this is what `bgsub eval --start/--step/--stop` build.
+        if not isinstance(self.start, (int, np.integer)) or self.start < 0:
+            raise InputError(f"--start takes a 0-based frame index >= 0 (as in bgsub run), "
+                             f"not {self.start!r}")
+        if not isinstance(self.step, (int, np.integer)) or self.step < 1:
+            raise InputError(f"--step must be at least 1, not {self.step!r}")
+        if self.stop is not None and (not isinstance(self.stop, (int, np.integer))
+                                      or self.stop <= self.start):
+            raise InputError(f"--stop ({self.stop!r}) must be after --start ({self.start})")
+
+    @property
+    def is_default(self) -> bool:
+        """True for a video of every frame from the first (frame ``k`` is number ``k + 1``)."""
+        return (self.start, self.step, self.stop) == (0, 1, None)
+
+    def number(self, k: int) -> int:
+        """1-based frame number of the video's frame ``k`` (0-based)."""
+        return self.start + k * self.step + 1
+
+    def covers(self, number: int) -> bool:
+        """Whether frame ``number`` (1-based) is one the video was made from."""
+        index = number - 1
+        return (index >= self.start and (index - self.start) % self.step == 0
+                and (self.stop is None or index < self.stop))
+
+    def flags(self) -> str:
+        """The ``bgsub eval`` options that state this range (``""`` for the default)."""
+        parts = [f"--start {self.start}" if self.start else "",
+                 f"--step {self.step}" if self.step != 1 else "",
+                 f"--stop {self.stop}" if self.stop is not None else ""]
+        return " ".join(p for p in parts if p)
+
+
 class _PredictionReader(ABC):
     """Yields ``(number, mask)`` for the wanted frame numbers it has; knows how to name them."""
 
@@ -498,27 +581,37 @@ class _FolderReader(_PredictionReader):
 
 
 class _VideoReader(_PredictionReader):
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, frames: VideoFrames = VideoFrames()) -> None:
         self.label = str(path)
         self.path = path
+        self.frames = frames
         self.frames_read = 0
 
     def read(self, numbers: Sequence[int]) -> Iterator[Tuple[int, np.ndarray]]:
         from bgsub.sources import open_source  # the frame reader (another stage's module)
 
         wanted = set(numbers)
-        # Frame number n is 0-based index n - 1. Reading from the start (not from min(numbers))
-        # lets a video that ends before the first wanted frame report missing frames instead of
-        # failing to open.
-        with open_source(str(self.path), stop=max(numbers)) as source:
-            for index, frame in source:
-                self.frames_read = index + 1
-                if index + 1 in wanted:
-                    yield index + 1, _to_gray(frame, f"{self.path} frame {index + 1}")
+        # ``numbers`` are all frames the video covers, so the last one is exactly its frame
+        # ``last``. Reading from the start (not from the first wanted frame) lets a video that
+        # ends before the first wanted frame report missing frames instead of failing to open.
+        last = (max(numbers) - 1 - self.frames.start) // self.frames.step
+        with open_source(str(self.path), stop=last + 1) as source:
+            for k, frame in source:
+                self.frames_read = k + 1
+                number = self.frames.number(k)
+                if number in wanted:
+                    yield number, _to_gray(frame, f"{self.path} frame {k + 1}")
 
     def missing_message(self, missing: Sequence[int], total: int) -> str:
-        return (f"{self.label} ends after frame {self.frames_read} but the ground truth needs "
-                f"frames up to {max(missing)}: " + super().missing_message(missing, total))
+        # The video has no frame numbers of its own: a short video is often one written from a
+        # later start or with a step, read here as if it began at frame 1.
+        flags = self.frames.flags()
+        given = f"with {flags}" if flags else "from frame 1, every frame"
+        return (f"{self.label} ends after frame {self.frames.number(self.frames_read - 1)} but "
+                f"the ground truth needs frames up to {max(missing)}: "
+                + super().missing_message(missing, total)
+                + "; a mask video carries no frame numbers: if bgsub run wrote it with "
+                  f"--start/--step/--stop, give eval the same flags (read here {given})")
 
 
 class _IterableReader(_PredictionReader):
@@ -534,17 +627,31 @@ class _IterableReader(_PredictionReader):
                 yield int(number), _to_gray(_as_uint8_mask(mask, number), f"frame {number}")
 
 
-def _prediction_reader(pred: Optional[Prediction]) -> _PredictionReader:
+def _prediction_reader(pred: Optional[Prediction],
+                       video: VideoFrames = VideoFrames()) -> _PredictionReader:
     if pred is None:  # a dataset sequence without any prediction (allow_missing)
         return _IterableReader((), label="(no prediction)")
     if isinstance(pred, (str, os.PathLike)):
         path = Path(pred)
         if path.is_dir():
+            _refuse_video_frames(video, f"{path} is a folder of binNNNNNN.png masks")
             return _FolderReader(path)
         if path.is_file():
-            return _VideoReader(path)
+            return _VideoReader(path, video)
         raise InputError(f"prediction {path} does not exist")
+    _refuse_video_frames(video, "these are masks from Python")
     return _IterableReader(pred)
+
+
+def _refuse_video_frames(video: VideoFrames, what: str) -> None:
+    """Refuse a video frame range for a prediction that numbers its own frames.
+
+    Ignoring it would leave a user who expected a shift with scores of other frames than meant.
+    """
+    if not video.is_default:
+        raise InputError(f"--start/--step/--stop ({video.flags()}) place the frames of a mask "
+                         f"video, but {what} that number their own frames; use "
+                         "--first-frame/--last-frame to choose frames")
 
 
 # --------------------------------------------------------------------------------------------
@@ -675,6 +782,9 @@ def evaluate_sequence(
     first_frame: Optional[int] = None,
     last_frame: Optional[int] = None,
     frames: Optional[Iterable[int]] = None,
+    video_start: int = 0,
+    video_step: int = 1,
+    video_stop: Optional[int] = None,
     quiet: bool = True,
 ) -> SequenceResult:
     """Evaluate the predicted masks of one sequence against its CDnet ground truth.
@@ -691,6 +801,11 @@ def evaluate_sequence(
         Defaults: the folder name and :func:`category_of` it.
     ignore_roi_bmp, allow_missing, skip_first, first_frame, last_frame, frames
         See the module docstring and :meth:`GroundTruth.select_frames`.
+    video_start, video_step, video_stop : int
+        For a mask video: the input frames it holds, as ``bgsub run --start --step --stop``
+        (0-based, ``range(video_start, video_stop, video_step)``; see :class:`VideoFrames`).
+        Only those frames are evaluated; ``skip_first`` also leaves out the video's first one.
+        Anything but the defaults (0, 1, None) is an error for other predictions.
     quiet : bool
         No progress bar (it is also off when stderr is not a terminal).
 
@@ -701,13 +816,24 @@ def evaluate_sequence(
     Raises
     ------
     InputError
-        Bad ground truth, a prediction of another size, or missing predictions without
-        ``allow_missing``.
+        Bad ground truth, a prediction of a size that is not a uniform scale of the ground
+        truth's, a video frame range for a prediction that is not a video, or missing
+        predictions without ``allow_missing``.
     """
+    video = VideoFrames(video_start, video_step, video_stop)
     gt = open_ground_truth(gt_dir, ignore_roi_bmp=ignore_roi_bmp)
     numbers = gt.select_frames(first_frame=first_frame, last_frame=last_frame, frames=frames,
                                skip_first=skip_first)
-    reader = _prediction_reader(pred)
+    reader = _prediction_reader(pred, video)
+    video_range = isinstance(reader, _VideoReader) and not video.is_default
+    if video_range:
+        # Frames the run did not read have no mask by design: they are not "missing". The
+        # video's first frame is the one a background model met without history.
+        numbers = [n for n in numbers
+                   if video.covers(n) and not (skip_first and n == video.number(0))]
+        if not numbers:
+            raise InputError(f"no ground-truth frames left to evaluate in {gt.path} among the "
+                             f"frames of mask video {reader.label} ({video.flags()})")
     if isinstance(reader, _FolderReader) and not allow_missing:
         absent = [n for n in numbers if n not in reader.files]
         if absent:  # fail before reading anything
@@ -716,6 +842,7 @@ def evaluate_sequence(
 
     counts = Counts()
     seen = set()
+    scaled_from: Optional[str] = None  # size of the first prediction brought to the gt's size
     bar = tqdm(total=len(numbers), desc=f"eval {gt.path.name}", unit="frame", file=sys.stderr,
                disable=quiet or not sys.stderr.isatty(), leave=False, dynamic_ncols=True)
     with bar:
@@ -725,10 +852,15 @@ def evaluate_sequence(
             seen.add(number)
             labels = gt.labels(number)
             if mask.shape != labels.shape:
-                raise InputError(
-                    f"prediction {reader.label} ({reader.frame_name(number)}) is {_size(mask)} "
-                    f"but ground truth {gt.frames[number]} is {_size(labels)}"
-                )
+                if not is_uniform_scale((mask.shape[1], mask.shape[0]), (gt.width, gt.height)):
+                    raise InputError(
+                        f"prediction {reader.label} ({reader.frame_name(number)}) is "
+                        f"{_size(mask)} but ground truth {gt.frames[number]} is {_size(labels)}"
+                    )
+                # Masks of `bgsub run --width/--scale`: scored at the ground truth's size, as
+                # `bgsub compare` does; nearest neighbour keeps them 0/255.
+                scaled_from = scaled_from or _size(mask)
+                mask = cv2.resize(mask, (gt.width, gt.height), interpolation=cv2.INTER_NEAREST)
             try:
                 counts += count_frame(mask, labels, gt.roi)
             except InputError as err:
@@ -749,7 +881,14 @@ def evaluate_sequence(
         notes.append(f"temporal ROI {gt.temporal_roi[0]}-{gt.temporal_roi[1]}")
     if missing:
         notes.append(f"{len(missing)} missing frames counted as background")
-    gaps = numbers[-1] - numbers[0] + 1 - len(numbers)
+    if video_range:
+        notes.append(f"mask video read with {video.flags()}")
+    if scaled_from is not None:
+        notes.append(f"{scaled_from} predictions scaled to {gt.width}x{gt.height} (nearest "
+                     "neighbour)")
+    # A step leaves frames out on purpose: only holes in its grid are gaps.
+    step = video.step if video_range else 1
+    gaps = len(range(numbers[0], numbers[-1] + 1, step)) - len(numbers)
     if gaps and frames is None:
         # Sparse ground truth (labels for some frames only) is legitimate, but say it: the
         # range in the summary would otherwise read as every frame of it.
@@ -817,7 +956,9 @@ def evaluate_dataset(
     allow_missing : bool
         Count missing frames, and sequences without any prediction, as all background.
     **options
-        Passed to :func:`evaluate_sequence` (``ignore_roi_bmp``, ``skip_first``, ...).
+        Passed to :func:`evaluate_sequence` (``ignore_roi_bmp``, ``skip_first``, ...);
+        ``video_start``/``video_step``/``video_stop`` apply to every sequence and need every
+        prediction found to be a mask video.
 
     Returns
     -------
@@ -837,6 +978,11 @@ def evaluate_dataset(
         listed = ", ".join(absent[:_MAX_LISTED]) + (", ..." if len(absent) > _MAX_LISTED else "")
         raise InputError(f"no prediction in {pred_root} for {len(absent)} of {len(rels)} "
                          f"sequences ({listed}); use --allow-missing to count them as background")
+    video = VideoFrames(options.get("video_start", 0), options.get("video_step", 1),
+                        options.get("video_stop"))
+    for pred in preds.values():  # before any sequence is scored
+        if pred is not None and pred.is_dir():
+            _refuse_video_frames(video, f"{pred} is a folder of binNNNNNN.png masks")
     results = []
     for seq, rel in zip(sequences, rels):
         pred = preds[rel]

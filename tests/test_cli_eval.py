@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import re
 
 import cv2
 import numpy as np
@@ -12,6 +13,9 @@ import pytest
 
 from bgsub.cli import main
 from bgsub.engines import get_engine_spec
+from bgsub.evaluation import evaluate_sequence
+from bgsub.samples import SceneSpec, generate_scene
+from bgsub.sinks import open_mask_sink
 
 GT = np.array([[255, 255, 0, 0, 170]] * 4, np.uint8)  # 8 positives, 8 negatives, 4 ignored
 PRED = np.array([[255, 0, 0, 0, 255]] * 4, np.uint8)  # TP 4, FN 4, TN 8
@@ -105,6 +109,73 @@ def test_eval_bad_paths_exit_2(case, tmp_path, capsys):
     assert main(["eval", str(pred), str(seq), "--first-frame", "0"]) == 2
     err = capsys.readouterr().err
     assert err.count("bgsub: error:") == 3
+
+
+@pytest.fixture
+def scene(tmp_path):
+    """A 16-frame 64x48 moving-camera scene with two objects, every frame in the temporal ROI."""
+    spec = SceneSpec("pan", seed=1, width=64, height=48, n_frames=16, warmup=0, n_objects=2)
+    return generate_scene(spec, tmp_path / "scenes")
+
+
+def _gt_masks(seq, numbers):
+    """The ground truth's own objects as 0/255 masks: a perfect prediction of those frames."""
+    return {n: np.where(cv2.imread(str(seq / "groundtruth" / f"gt{n:06d}.png"),
+                                   cv2.IMREAD_GRAYSCALE) == 255, 255, 0).astype(np.uint8)
+            for n in numbers}
+
+
+def test_eval_start_step_stop_read_a_mask_video_like_bgsub_run(scene, tmp_path, capsys):
+    # The perfect masks of input frames 3, 5, 7, 9 (0-based), as `bgsub run --start 3 --step 2
+    # --stop 11` would write them.
+    masks = _gt_masks(scene, [4, 6, 8, 10])
+    with open_mask_sink(tmp_path / "m.mkv", width=64, height=48, fps=25.0) as sink:
+        for number, mask in masks.items():
+            sink.write(mask, number - 1)
+    assert main(["eval", str(tmp_path / "m.mkv"), str(scene), "--json", "--start", "3",
+                 "--step", "2", "--stop", "11"]) == 0
+    (only,) = json.loads(capsys.readouterr().out)["sequences"]
+    assert (only["frames"], only["first_frame"], only["last_frame"]) == (4, 4, 10)
+    assert only["metrics"]["f_measure"] == 1.0 and only["counts"]["tp"] > 0
+
+
+def test_eval_repeats_the_flags_bgsub_run_notes(scene, tmp_path, capsys):
+    video = tmp_path / "m.mkv"
+    assert main(["run", str(scene), "-o", str(video), "-m", "framediff", "--start", "5",
+                 "--step", "3"]) == 0
+    flags = re.search(r"GROUNDTRUTH (.*)`", capsys.readouterr().err).group(1).split()
+    assert main(["eval", str(video), str(scene), "--json", *flags]) == 0
+    (only,) = json.loads(capsys.readouterr().out)["sequences"]
+    # The same run written as bin pngs keeps the frame numbers: the reference.
+    assert main(["run", str(scene), "-o", str(tmp_path / "bins"), "-m", "framediff", "--start",
+                 "5", "--step", "3", "-q"]) == 0
+    expected = evaluate_sequence(tmp_path / "bins", scene, frames=[6, 9, 12, 15]).counts
+    assert only["frames"] == 4 and only["counts"] == expected.as_dict()
+
+
+def test_eval_short_mask_video_error_names_the_run_flags(scene, tmp_path, bgsub_error):
+    with open_mask_sink(tmp_path / "m.mkv", width=64, height=48, fps=25.0) as sink:
+        for number, mask in _gt_masks(scene, range(9, 17)).items():
+            sink.write(mask, number - 1)
+    err = bgsub_error(["eval", tmp_path / "m.mkv", scene])
+    assert "ends after frame 8" in err and "give eval the same flags" in err
+    assert "--start/--step/--stop" in err
+
+
+def test_eval_video_flags_refused_for_a_png_folder(case, bgsub_error):
+    pred, seq = case
+    err = bgsub_error(["eval", pred, seq, "--start", "1"])
+    assert "folder of binNNNNNN.png" in err and "--first-frame" in err
+
+
+def test_eval_scales_masks_run_wrote_at_another_width(scene, tmp_path, capsys):
+    assert main(["run", str(scene), "-o", str(tmp_path / "small"), "-m", "framediff",
+                 "--width", "40", "-q"]) == 0
+    assert cv2.imread(str(tmp_path / "small" / "bin000001.png")).shape[:2] == (30, 40)
+    assert main(["eval", str(tmp_path / "small"), str(scene)]) == 0
+    captured = capsys.readouterr()
+    assert "40x30 predictions scaled to 64x48 (nearest neighbour)" in captured.out
+    assert captured.out.count("scaled") == 1 and captured.err == ""
 
 
 def test_eval_help_teaches():

@@ -175,6 +175,26 @@ def test_fps_notice_for_image_folder_written_as_video(tmp_path, capsys):
     assert code == 0 and "25 fps" in err
 
 
+def test_mask_video_from_a_later_start_notes_the_eval_flags(tmp_path, clip, capsys):
+    code, err = _run(capsys, clip, "-o", tmp_path / "m.mkv", "-m", "_test_diff",
+                     "--start", "4", "--step", "3", "--stop", "16")
+    assert code == 0
+    lines = err.strip().splitlines()
+    assert len(lines) == 2 and len(_video_frames(tmp_path / "m.mkv")) == 4
+    assert f"`bgsub eval {tmp_path / 'm.mkv'} GROUNDTRUTH --start 4 --step 3 --stop 16`" \
+        in lines[0]
+
+
+@pytest.mark.parametrize("output, args", [
+    ("m.mkv", ["--stop", "6"]),             # frame k is still frame k: nothing to say
+    ("m", ["--start", "4", "--step", "3"]),  # bin pngs carry the frame numbers
+    ("m.mkv", ["--start", "4", "--quiet"]),
+])
+def test_no_eval_note_when_not_needed_or_quiet(tmp_path, clip, capsys, output, args):
+    code, err = _run(capsys, clip, "-o", tmp_path / output, "-m", "_test_diff", *args)
+    assert code == 0 and "bgsub eval" not in err
+
+
 def test_vis_video_is_side_by_side(tmp_path, clip, capsys):
     code, _ = _run(capsys, clip, "-o", tmp_path / "m", "--vis", tmp_path / "vis.mp4",
                    "-m", "_test_diff", "--stop", "6")

@@ -14,8 +14,9 @@ import pytest
 from bgsub.errors import InputError
 from bgsub.evaluation import (
     Counts, Metrics, category_of, count_frame, evaluate, evaluate_dataset, evaluate_sequence,
-    find_sequences, metrics, open_ground_truth,
+    find_sequences, is_uniform_scale, metrics, open_ground_truth,
 )
+from bgsub.sources import output_size
 
 
 def write_sequence(folder: Path, gts: Dict[int, np.ndarray], *, temporal_roi=None,
@@ -192,9 +193,39 @@ def test_missing_frame_reported(hand_case):
 
 def test_size_mismatch_names_both_sizes(tmp_path):
     gt = write_sequence(tmp_path / "seq", {1: GT2})
-    pred = write_bins(tmp_path / "pred", {1: np.zeros((6, 7), np.uint8)})
-    with pytest.raises(InputError, match=r"7x6.*5x4"):
+    # 10x4 is no scale of 5x4 (7x6 would be: 5x4 times 1.4, rounded).
+    pred = write_bins(tmp_path / "pred", {1: np.zeros((4, 10), np.uint8)})
+    with pytest.raises(InputError, match=r"10x4.*5x4"):
         evaluate_sequence(pred, gt)
+
+
+@pytest.mark.parametrize("width, height", [(321, 239), (320, 240), (352, 288), (97, 61)])
+def test_every_size_bgsub_run_resizes_to_is_a_uniform_scale(width, height):
+    sizes = [output_size(width, height, target_width=w) for w in range(13, 2 * width, 3)]
+    sizes += [output_size(width, height, scale=s) for s in np.arange(0.05, 2.0, 0.0125)]
+    assert all(is_uniform_scale(size, (width, height)) for size in sizes)
+
+
+def test_other_sizes_are_not_a_uniform_scale():
+    assert not is_uniform_scale((352, 240), (320, 240))  # CDnet traffic's ROI.bmp
+    assert not is_uniform_scale((160, 121), (320, 240))  # 1 pixel more than the rounding gives
+    assert not is_uniform_scale((120, 160), (320, 240))  # turned
+
+
+def test_prediction_at_a_scale_of_the_ground_truth_is_scaled_back(tmp_path):
+    """Masks of `bgsub run --scale 0.5` score as the same masks at full size, with one note."""
+    rng = np.random.default_rng(5)
+    labels = {n: rng.choice(np.array([0, 50, 170, 255], np.uint8), size=(24, 32))
+              for n in (1, 2)}
+    half = {n: np.where(rng.random((12, 16)) > 0.5, 255, 0).astype(np.uint8) for n in (1, 2)}
+    gt = write_sequence(tmp_path / "seq", labels)
+    pred = write_bins(tmp_path / "pred", half)
+    # Nearest neighbour at exactly twice the size: every pixel becomes a 2x2 block.
+    full = {n: m.repeat(2, axis=0).repeat(2, axis=1) for n, m in half.items()}
+    result = evaluate_sequence(pred, gt)
+    assert result.counts == evaluate_sequence(full, gt).counts
+    assert [n for n in result.notes if "scaled" in n] == ["16x12 predictions scaled to 32x24 "
+                                                          "(nearest neighbour)"]
 
 
 def test_roi_bmp_of_wrong_size(tmp_path):
@@ -234,6 +265,65 @@ def test_short_mask_video_reported(tmp_path):
     with pytest.raises(InputError, match=r"ends after frame 4.*frames up to 6.*2 of 5"):
         evaluate_sequence(video, gt)
     assert evaluate_sequence(video, gt, allow_missing=True).missing == [5, 6]
+
+
+def test_short_mask_video_message_names_the_run_flags(tmp_path):
+    video, _, gt = _video_case(tmp_path, 4)
+    with pytest.raises(InputError, match=r"no frame numbers.*--start/--step/--stop"):
+        evaluate_sequence(video, gt)
+
+
+def _ranged_video(tmp_path, indices: Sequence[int]):
+    """GT frames 1-10 (32x24, random labels), the masks of all of them as bin pngs, and a mask
+    video of the masks of the 0-based input ``indices`` only (what `bgsub run --start
+    --step --stop` writes)."""
+    from bgsub.sinks import open_mask_sink
+
+    rng = np.random.default_rng(11)
+    numbers = range(1, 11)
+    gts = {n: rng.choice(np.array([0, 50, 170, 255], np.uint8), size=(24, 32)) for n in numbers}
+    preds = {n: np.where(rng.random((24, 32)) > 0.5, 255, 0).astype(np.uint8) for n in numbers}
+    gt = write_sequence(tmp_path / "seq", gts)
+    video = tmp_path / "masks.mkv"
+    with open_mask_sink(video, width=32, height=24, fps=25.0) as sink:
+        for index in indices:
+            sink.write(preds[index + 1], index)
+    return video, write_bins(tmp_path / "bins", preds), gt
+
+
+def test_mask_video_start_and_step_pair_its_frames_with_the_right_ground_truth(tmp_path):
+    video, bins, gt = _ranged_video(tmp_path, range(2, 10, 3))  # frames 3, 6, 9
+    result = evaluate_sequence(video, gt, video_start=2, video_step=3)
+    assert (result.n_frames, result.first_frame, result.last_frame) == (3, 3, 9)
+    assert result.missing == [] and result.counts.total > 0
+    assert result.counts == evaluate_sequence(bins, gt, frames=[3, 6, 9]).counts
+    assert not any("no ground truth" in n for n in result.notes)  # the step is no gap
+
+
+def test_mask_video_stop_ends_the_frames_and_skip_first_drops_its_first(tmp_path):
+    video, bins, gt = _ranged_video(tmp_path, range(4, 8))  # frames 5-8
+    result = evaluate_sequence(video, gt, video_start=4, video_stop=8, skip_first=True)
+    assert (result.first_frame, result.last_frame, result.missing) == (6, 8, [])
+    assert result.counts == evaluate_sequence(bins, gt, frames=[6, 7, 8]).counts
+
+
+def test_video_frame_range_refused_for_predictions_that_number_their_frames(tmp_path):
+    video, bins, gt = _ranged_video(tmp_path, range(10))
+    with pytest.raises(InputError, match=r"--start 1.*folder of binNNNNNN\.png"):
+        evaluate_sequence(bins, gt, video_start=1)
+    with pytest.raises(InputError, match=r"--step 2.*masks from Python"):
+        evaluate_sequence({1: GT2}, gt, video_step=2)
+
+
+@pytest.mark.parametrize("options, words", [
+    (dict(video_start=-1), "--start takes a 0-based frame index >= 0"),
+    (dict(video_step=0), "--step must be at least 1"),
+    (dict(video_start=5, video_stop=5), r"--stop \(5\) must be after --start \(5\)"),
+])
+def test_invalid_video_frame_range(tmp_path, options, words):
+    video, _, gt = _ranged_video(tmp_path, range(10))
+    with pytest.raises(InputError, match=words):
+        evaluate_sequence(video, gt, **options)
 
 
 def test_python_masks_input(hand_case):

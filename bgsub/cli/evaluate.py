@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from pathlib import Path
 from typing import Any
 
 from bgsub.errors import InputError, OutputError
@@ -26,12 +27,20 @@ The category of root/CATEGORY/NAME is CATEGORY; of root/NAME, the part of NAME b
 Only frames inside the temporal ROI count, and only pixels inside ROI.bmp whose label is 0 or 50
 (negative) or 255 (positive); 85 (outside ROI) and 170 (unknown) are ignored; other labels are an
 error. A frame to evaluate without a prediction is an error unless --allow-missing. Metrics with
-a zero denominator are undefined (n/a, JSON null)."""
+a zero denominator are undefined (n/a, JSON null).
+
+A mask video has no frame numbers: its first frame is taken as frame 1 and the next as frame 2.
+For a video that `bgsub run` wrote with --start/--step (and --stop), give eval the same flags
+(same meaning: 0-based input indices); only the frames the run read are then evaluated.
+binNNNNNN.png names carry their frame numbers: these flags are refused for a folder.
+Masks smaller or larger than the ground truth by one scale factor (`bgsub run --width/--scale`)
+are scaled to the ground truth's size (nearest neighbour); other sizes are an error."""
 
 _EPILOG = """\
 examples:
   bgsub eval masks/ data/cameraJitter/traffic --no-roi-bmp     one sequence
   bgsub eval masks.mkv scenes/static_s1 --skip-first           a mask video, frame 1 left out
+  bgsub eval masks.mkv scenes/pan_s1 --start 30 --step 2       from `run --start 30 --step 2`
   bgsub eval results/ scenes/ --csv scores.csv                 every sequence under scenes/
   bgsub eval results/ scenes/ --json > scores.json             machine-readable
 
@@ -64,8 +73,9 @@ def register(subparsers: Any) -> None:
                         help="ignore ROI.bmp (e.g. CDnet traffic's, which has the wrong size); "
                              "label 85 still marks outside-ROI pixels")
     frames.add_argument("--skip-first", action="store_true",
-                        help="leave out frame 1 (a background model has seen nothing before "
-                             "it); no effect when the temporal ROI starts later")
+                        help="leave out frame 1, or a mask video's first frame with --start "
+                             "(a background model has seen nothing before it); no effect when "
+                             "the temporal ROI starts later")
     frames.add_argument("--first-frame", type=int, default=None, metavar="N",
                         help="evaluate frames numbered N and later (1-based, like gtNNNNNN)")
     frames.add_argument("--last-frame", type=int, default=None, metavar="N",
@@ -73,6 +83,17 @@ def register(subparsers: Any) -> None:
     frames.add_argument("--allow-missing", action="store_true",
                         help="count frames (or sequences) without a prediction as all "
                              "background instead of failing")
+    # The names, types and meaning of `bgsub run`'s (cli.common.add_source_options), so the
+    # flags that wrote a mask video can be repeated here word for word.
+    video = parser.add_argument_group(
+        "mask video frames",
+        "the --start/--step/--stop `bgsub run` wrote a mask video with (videos only)")
+    video.add_argument("--start", type=int, default=0, metavar="N",
+                       help="the video's first frame is input frame N, 0-based (default: 0)")
+    video.add_argument("--stop", type=int, default=None, metavar="N",
+                       help="the video stops before input frame N, 0-based (default: the end)")
+    video.add_argument("--step", type=int, default=1, metavar="N",
+                       help="the video holds every N-th input frame (default: 1)")
     parser.set_defaults(handler=run)
 
 
@@ -94,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
         args.pred, args.groundtruth,
         ignore_roi_bmp=args.no_roi_bmp, allow_missing=args.allow_missing,
         skip_first=args.skip_first, first_frame=args.first_frame, last_frame=args.last_frame,
-        quiet=args.quiet,
+        video_start=args.start, video_step=args.step, video_stop=args.stop, quiet=args.quiet,
     )
 
     if csv_path is not None:
@@ -110,6 +131,9 @@ def run(args: argparse.Namespace) -> int:
         print(format_table(result))
     for seq in result.sequences:
         if seq.missing:
+            # A video read from the wrong start scores about 0 with most frames "missing".
+            hint = ("; if bgsub run wrote the mask video with --start/--step/--stop, give eval "
+                    "the same flags") if Path(seq.pred_path).is_file() else ""
             print(f"bgsub: warning: {seq.name}: {len(seq.missing)} frames had no prediction and "
-                  "were counted as background", file=sys.stderr)
+                  f"were counted as background{hint}", file=sys.stderr)
     return 0

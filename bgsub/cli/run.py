@@ -8,11 +8,13 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import shlex
 from typing import List, Optional
 
 from bgsub import engines
 from bgsub.cli import common
 from bgsub.errors import InputError
+from bgsub.evaluation import VideoFrames
 from bgsub.sinks import (
     RunStats,
     VideoSink,
@@ -31,7 +33,8 @@ Find the moving objects in a video and write one foreground mask per frame (0 = 
 folder reads its input/ folder) or a quoted glob pattern. OUTPUT is a mask video (.mkv or .avi:
 lossless FFV1; .mp4: lossy) or, for a name without an extension, a folder of CDnet-style
 binNNNNNN.png masks numbered like the input frames (bin000123.png is the mask of in000123.jpg);
-other extensions are refused.
+other extensions are refused. A mask video holds no frame numbers: to score one written with
+--start/--step, give `bgsub eval` the same --start/--step/--stop.
 
 Outputs are written under a temporary name and renamed when done; after Ctrl-C they hold the
 frames processed so far and are still valid."""
@@ -106,6 +109,19 @@ def _fps_notice(info: VideoInfo, args: argparse.Namespace) -> Optional[str]:
     return None
 
 
+def _eval_notice(args: argparse.Namespace) -> Optional[str]:
+    """How to score a mask video that does not hold every input frame from the first.
+
+    A video carries no frame numbers, so `bgsub eval` takes its k-th frame as frame k (1-based)
+    unless given the range the masks were made from; a png folder's names carry the numbers.
+    """
+    if not is_video_path(args.output) or (args.start, args.step) == (0, 1):
+        return None
+    flags = VideoFrames(args.start, args.step, args.stop).flags()
+    return (f"{args.output} holds no frame numbers: score it with `bgsub eval "
+            f"{shlex.quote(str(args.output))} GROUNDTRUTH {flags}`")
+
+
 def run(args: argparse.Namespace) -> int:
     method = _method(args.method)
     params = engines.parse_params(method, args.param)
@@ -116,9 +132,9 @@ def run(args: argparse.Namespace) -> int:
     if args.flow_vis and not callable(getattr(engine, "debug_image", None)):
         raise InputError(f"--flow-vis: method {method!r} cannot draw its motion (it has no "
                          "debug_image); use a moving-camera method such as grbm")
-    notice = _fps_notice(info, args)
-    if notice:
-        common.note(notice, quiet=args.quiet)
+    for notice in (_fps_notice(info, args), _eval_notice(args)):
+        if notice:
+            common.note(notice, quiet=args.quiet)
 
     with contextlib.ExitStack() as stack:
         stack.enter_context(source)

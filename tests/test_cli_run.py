@@ -370,3 +370,9 @@ def test_real_sigint_leaves_valid_partial_output(tmp_path, clip):
     held = int(re.search(r"holds (\d+) frame", err).group(1))
     assert 0 < held < N and len(_video_frames(out)) == held
     assert not partial.exists()
+
+
+def test_methods_lists_the_default_engine_first(capsys):
+    assert main(["methods"]) == 0
+    first = capsys.readouterr().out.splitlines()[0]
+    assert first.startswith("grbm (default):")

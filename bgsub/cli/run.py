@@ -31,7 +31,7 @@ _DESCRIPTION = """\
 Find the moving objects in a video and write one foreground mask per frame (0 = background,
 255 = foreground). INPUT is a video file, a folder of images (natural order; a CDnet sequence
 folder reads its input/ folder) or a quoted glob pattern. OUTPUT is a mask video (.mkv or .avi:
-lossless FFV1; .mp4: lossy) or, for a name without an extension, a folder of CDnet-style
+lossless FFV1; .mp4 or .mov: lossy) or, for a name without an extension, a folder of CDnet-style
 binNNNNNN.png masks numbered like the input frames (bin000123.png is the mask of in000123.jpg);
 other extensions are refused. A mask video holds no frame numbers: to score one written with
 --start/--step, give `bgsub eval` the same --start/--step/--stop.
@@ -59,7 +59,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("input", metavar="INPUT",
                         help="video file, image folder, or glob pattern such as 'frames/*.png'")
     parser.add_argument("-o", "--output", required=True, metavar="OUTPUT",
-                        help="mask video (.mkv/.avi lossless, .mp4 lossy), or a name without "
+                        help="mask video (.mkv/.avi lossless, .mp4/.mov lossy), or a name without "
                              "an extension for a folder of binNNNNNN.png masks")
     parser.add_argument("-m", "--method", default=None, metavar="NAME",
                         help=f"engine to use (default: {engines.DEFAULT_METHOD}; see "

@@ -40,6 +40,8 @@ def opencv_keywords(apply: Callable[..., np.ndarray]) -> Callable[..., np.ndarra
                 learning_rate: float = -1.0, *,
                 learningRate: Optional[float] = None) -> np.ndarray:  # noqa: N803 (OpenCV's)
         if learningRate is not None:
+            if learning_rate != -1.0:
+                raise InputError("give learning_rate or OpenCV's learningRate, not both")
             learning_rate = learningRate
         return apply(self, image, fgmask, learning_rate)
 

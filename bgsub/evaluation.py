@@ -825,7 +825,9 @@ def evaluate_sequence(
     numbers = gt.select_frames(first_frame=first_frame, last_frame=last_frame, frames=frames,
                                skip_first=skip_first)
     reader = _prediction_reader(pred, video)
-    video_range = isinstance(reader, _VideoReader) and not video.is_default
+    # A dataset sequence without any prediction (pred None, allow_missing) counts the frames the
+    # videos of the others hold, so the frame totals of the two agree.
+    video_range = not video.is_default and (pred is None or isinstance(reader, _VideoReader))
     if video_range:
         # Frames the run did not read have no mask by design: they are not "missing". The
         # video's first frame is the one a background model met without history.
@@ -998,6 +1000,10 @@ def evaluate(pred: PathLike, gt: PathLike, **options: Any) -> DatasetResult:
 
     A single sequence gives a result with one sequence, one category, and overall = it.
     """
+    for what, path in (("prediction", pred), ("ground truth", gt)):
+        if isinstance(path, (str, os.PathLike)) and not os.fspath(path).strip():
+            # Path("") is the current folder: never what was meant.
+            raise InputError(f"the {what} path is empty")
     if not Path(gt).exists():
         raise InputError(f"ground truth {gt} does not exist")
     if is_sequence(gt):

@@ -309,7 +309,10 @@ def still_in_image_map(
     k = (int(window), int(window))
     r_cam = cv2.blur(cv2.absdiff(cur, warped), k).astype(np.float32)
     r_id = cv2.blur(cv2.absdiff(cur, prev), k).astype(np.float32)
+    # The 4 gray levels are a noise floor: on flat areas both differences are a few levels of
+    # noise, and their ratio alone would swing from -1 to 1.
     s = (r_cam - r_id) / (r_cam + r_id + np.float32(4.0))
+    # The soft step 1 / (1 + exp(-(s - centre) / width)), in place.
     s -= np.float32(centre)
     s *= np.float32(-1.0 / width)
     np.exp(np.clip(s, -60.0, 60.0), out=s)

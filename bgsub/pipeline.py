@@ -400,7 +400,7 @@ class MovingCameraEngine(Engine):
         old = max(int(np.count_nonzero(~young)), 1)
         used = max(int(np.count_nonzero(result.weights > 0)), 1)
         support = result.motion.n_inliers / used if result.motion.ok else 0.0
-        changed = np.count_nonzero(score > 1.0) / old
+        changed = np.count_nonzero((score > 1.0) & ~young) / old  # of the pixels with history
         if (changed > self.scene_cut and support < self.cut_support) or changed > 0.8:
             self._restart(work, gray, cur)
             self.last_status = "fallback: scene cut"
@@ -749,8 +749,9 @@ class GrbmEngine(MovingCameraEngine):
 # ---------------------------------------------------------------------- registration
 
 _COMMON = {
-    "work_width": Param(320, "process frames resized to this width (0 = input size); the mask "
-                             "is returned at the input size", low=0),
+    "work_width": Param(320, "process frames resized to this width (0 = input size, else at "
+                             f"least {MIN_WORK_WIDTH}); the mask is returned at the input size",
+                        low=0),
     "motion_model": Param("homography", "camera motion model fitted by RANSAC",
                           choices=("homography", "affine", "similarity", "translation")),
     "ransac_threshold": Param(1.5, "RANSAC inlier distance in working-size pixels", above=0),
@@ -764,7 +765,7 @@ _COMMON = {
                       low=1, high=31),
     "min_age": Param(1, "frames of history a pixel needs before it can be foreground", low=0),
     "young_score": Param(0.6, "score of pixels younger than min_age (below 1: foreground only "
-                              "where local motion evidence boosts it; 0 = never)", low=0),
+                              "where local motion evidence boosts it; 0 = never)", low=0, high=1),
     "flow_boost": Param(0.8, "where local motion violates the camera's, the background "
                              "difference is multiplied by up to 1 + this", low=0),
     "flow_damp": Param(0.8, "where local motion agrees with the camera's, it is multiplied by "

@@ -276,3 +276,8 @@ def test_every_engine_takes_opencvs_keyword_spelling(name):
 
     apply = type(create_engine(name)).apply
     assert "learningRate" in inspect.signature(apply, follow_wrapped=False).parameters
+
+
+def test_both_spellings_of_the_learning_rate_are_refused():
+    with pytest.raises(InputError, match="not both"):
+        create_engine("mog2").apply(_background(), learning_rate=0.5, learningRate=0.5)

@@ -440,3 +440,32 @@ def test_a_temporal_roi_that_is_a_folder_is_an_error_not_ignored(tmp_path):
     (gt / "temporalROI.txt").mkdir()
     with pytest.raises(InputError, match=r"temporalROI\.txt is not a file"):
         open_ground_truth(gt)
+
+
+def test_a_sequence_without_prediction_counts_only_the_frames_the_videos_hold(tmp_path):
+    """With --step 2 --allow-missing, a sequence with no mask video is scored on the frames the
+    others' videos hold, not on every frame."""
+    from bgsub.sinks import open_mask_sink
+
+    gt_root, pred_root = tmp_path / "gt", tmp_path / "pred"
+    labels = {n: np.full((16, 16), 255, np.uint8) for n in range(1, 9)}
+    write_sequence(gt_root / "c" / "s1", labels)
+    write_sequence(gt_root / "c" / "s2", labels)
+    pred_root.mkdir()
+    with open_mask_sink(pred_root / "s1.mkv", width=16, height=16, fps=25.0) as sink:
+        for index in range(0, 8, 2):
+            sink.write(labels[index + 1], index)
+    result = evaluate_dataset(pred_root, gt_root, allow_missing=True, video_step=2)
+    held, missing = result.sequences
+    assert held.n_frames == missing.n_frames == 4
+    assert missing.missing == [1, 3, 5, 7]
+
+
+@pytest.mark.parametrize("pred, gt", [("", "seq"), ("pred", "")])
+def test_an_empty_path_is_refused_not_read_as_the_current_folder(tmp_path, pred, gt):
+    write_sequence(tmp_path / "seq", {1: GT2})
+    write_bins(tmp_path / "pred", {1: PRED2})
+    pred = str(tmp_path / pred) if pred else pred
+    gt = str(tmp_path / gt) if gt else gt
+    with pytest.raises(InputError, match="path is empty"):
+        evaluate(pred, gt)

@@ -123,6 +123,20 @@ def test_an_object_the_camera_follows_is_found(name):
     assert with_cue > without + 0.1, (with_cue, without)
 
 
+def test_pixels_without_history_never_count_towards_a_scene_cut():
+    """After a restart every pixel is young; were their score counted against the pixels with
+    history, a young_score above the threshold would restart the model on every frame."""
+    from bgsub.foreground import BackgroundParams
+    from bgsub.pipeline import CompensatedEngine
+
+    eng = CompensatedEngine(background=BackgroundParams(young_score=1.5, min_age=3))
+    statuses = []
+    for frame, _ in _frames(n=8):
+        eng.apply(frame)
+        statuses.append(eng.last_status)
+    assert "fallback: scene cut" not in statuses, statuses
+
+
 def test_static_scene_under_pan_has_almost_no_foreground():
     eng = create_engine("compensated")
     counts = [np.count_nonzero(eng.apply(f)) for f, _ in _frames(n=10, square=False)]
@@ -186,6 +200,7 @@ def test_engines_registered_with_documented_params():
     ("compensated", {"lk_window": 100_000}, "'lk_window' must be at most 255"),
     ("mog2", {"history": 10**11}, "'history' is too large"),  # OpenCV takes a C int
     ("compensated", {"close": 10**6}, "'close' must be at most 99"),  # not an allocation error
+    ("grbm", {"young_score": 1.5}, "'young_score' must be at most 1"),
     ("grbm", {"work_width": 5}, "'work_width' must be 0 .* or at least 32"),
     ("mog2", {"var_min": 0.0}, "mog2: parameter 'var_min' must be greater than 0"),
 ])

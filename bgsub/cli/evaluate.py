@@ -132,8 +132,12 @@ def run(args: argparse.Namespace) -> int:
     for seq in result.sequences:
         if seq.missing:
             # A video read from the wrong start scores about 0 with most frames "missing".
-            hint = ("; if bgsub run wrote the mask video with --start/--step/--stop, give eval "
-                    "the same flags") if Path(seq.pred_path).is_file() else ""
+            hint = ""
+            if Path(seq.pred_path).is_file():
+                given = (args.start, args.step, args.stop) != (0, 1, None)
+                hint = ("; check that --start/--step/--stop are those bgsub run wrote the mask "
+                        "video with" if given else "; if bgsub run wrote the mask video with "
+                        "--start/--step/--stop, give eval the same flags")
             print(f"bgsub: warning: {seq.name}: {len(seq.missing)} frames had no prediction and "
                   f"were counted as background{hint}", file=sys.stderr)
     return 0

@@ -45,6 +45,10 @@ __all__ = ["MovingCameraEngine", "GrbmEngine", "CompensatedEngine", "MotionResul
            "limited_threads"]
 
 
+# The narrowest working frame: a few 13x13 patches across, so a motion can be read at all.
+MIN_WORK_WIDTH = 32
+
+
 # ---------------------------------------------------------------------- worker threads
 #
 # One frame's work is many small matmuls (a few hundred to ~1100 patches x 169 x 200) and
@@ -55,9 +59,6 @@ __all__ = ["MovingCameraEngine", "GrbmEngine", "CompensatedEngine", "MotionResul
 # (default 1) BLAS and OpenCV threads and restore the previous settings afterwards. The settings
 # are process-wide: engines stepped concurrently from several Python threads should all use the
 # same ``threads`` value.
-
-# The narrowest working frame: a few 13x13 patches across, so a motion can be read at all.
-MIN_WORK_WIDTH = 32
 
 _BLAS_SYMBOLS = (
     ("scipy_openblas_set_num_threads64_", "scipy_openblas_get_num_threads64_"),

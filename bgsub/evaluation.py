@@ -831,11 +831,13 @@ def evaluate_sequence(
     if video_range:
         # Frames the run did not read have no mask by design: they are not "missing". The
         # video's first frame is the one a background model met without history.
-        numbers = [n for n in numbers
-                   if video.covers(n) and not (skip_first and n == video.number(0))]
-        if not numbers:
+        held = [n for n in numbers
+                if video.covers(n) and not (skip_first and n == video.number(0))]
+        if not held:  # select_frames() never returns an empty list
             raise InputError(f"no ground-truth frames left to evaluate in {gt.path} among the "
-                             f"frames of mask video {reader.label} ({video.flags()})")
+                             f"frames of mask video {reader.label} ({video.flags()}): the "
+                             f"ground truth's selected frames are {numbers[0]}-{numbers[-1]}")
+        numbers = held
     if isinstance(reader, _FolderReader) and not allow_missing:
         absent = [n for n in numbers if n not in reader.files]
         if absent:  # fail before reading anything

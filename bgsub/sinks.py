@@ -100,8 +100,11 @@ def _output_given(path: PathLike) -> str:
 
 
 def _check_writable_folder(folder: Path, output: Path) -> None:
-    if folder.exists() and not folder.is_dir():
-        raise OutputError(f"{output}: {folder} is not a folder")
+    existing = folder
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if existing.exists() and not existing.is_dir():  # afile/sub/m.mkv: name the file
+        raise OutputError(f"{output}: {existing} is not a folder")
     if not folder.is_dir():
         raise OutputError(f"{output}: the folder {folder} does not exist")
     if not os.access(folder, os.W_OK | os.X_OK):

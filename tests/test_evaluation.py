@@ -469,3 +469,9 @@ def test_an_empty_path_is_refused_not_read_as_the_current_folder(tmp_path, pred,
     gt = str(tmp_path / gt) if gt else gt
     with pytest.raises(InputError, match="path is empty"):
         evaluate(pred, gt)
+
+
+def test_a_video_range_outside_the_selected_frames_names_both(tmp_path):
+    video, _, gt = _ranged_video(tmp_path, range(2))  # the masks of frames 1-2
+    with pytest.raises(InputError, match=r"--stop 2\).*selected frames are 5-10"):
+        evaluate_sequence(video, gt, video_stop=2, first_frame=5)

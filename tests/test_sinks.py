@@ -400,6 +400,8 @@ def test_an_output_under_a_file_names_the_file_as_not_a_folder(tmp_path):
         sinks.check_video_output(blocker / "masks.mkv")
     with pytest.raises(OutputError, match="plain.txt is not a folder"):
         sinks.check_mask_output(blocker / "sub" / "masks")
+    with pytest.raises(OutputError, match="plain.txt is not a folder"):
+        sinks.check_video_output(blocker / "sub" / "masks.mkv")
 
 
 def test_a_refused_file_is_explained_with_the_systems_reason(tmp_path):

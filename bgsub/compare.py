@@ -37,7 +37,6 @@ import csv
 import io
 import json
 import math
-import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -48,7 +47,7 @@ import numpy as np
 
 from bgsub.cli.common import progress
 from bgsub.engines import available_engines, create_engine, get_engine_spec
-from bgsub.errors import InputError, OutputError, ProcessingError
+from bgsub.errors import InputError, OutputError, ProcessingError, given_path
 from bgsub.evaluation import (
     METRIC_NAMES,
     METRIC_TITLES,
@@ -448,8 +447,8 @@ def _check_report_dir(report_dir: PathLike, overwrite: bool) -> None:
     """Create ``report_dir`` or check that it may be filled; raise :class:`OutputError` when it
     holds results (without ``overwrite``), is a file, looks like a file name, or cannot be
     made. ``report_dir`` as given: a trailing slash marks a dotted name as a folder."""
-    if not os.fspath(report_dir).strip():
-        raise OutputError("the report folder's name is empty; give one such as cmp/")
+    given_path(report_dir, what="report folder", hint="a folder name such as cmp/",
+               error=OutputError)
     if Path(report_dir).suffix.lower() in _FILE_SUFFIXES and not names_a_folder(report_dir):
         raise OutputError(
             f"{report_dir}: the report goes in a folder (report.txt, .csv and .json are written "

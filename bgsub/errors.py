@@ -7,6 +7,9 @@ failure while processing). Anything else is a bug.
 
 from __future__ import annotations
 
+import os
+from typing import Union
+
 
 class BgsubError(Exception):
     """Base class: a problem the user can fix; ``str(err)`` is the one-line message."""
@@ -30,3 +33,14 @@ class ProcessingError(BgsubError):
     """A failure during processing, after the inputs were accepted."""
 
     exit_code = 1
+
+
+def given_path(path: Union[str, "os.PathLike[str]"], *, what: str, hint: str,
+               error: type = InputError) -> str:
+    """``path`` as text; ``error`` when it is empty or blank, which ``Path`` would quietly read as
+    the current folder (never what was meant). The message: "the {what} path is empty; give
+    {hint}"."""
+    text = os.fspath(path)
+    if not text.strip():
+        raise error(f"the {what} path is empty; give {hint}")
+    return text

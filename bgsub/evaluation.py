@@ -103,7 +103,7 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
-from bgsub.errors import InputError
+from bgsub.errors import InputError, given_path
 
 #: Mask-video extensions recognised when looking for a sequence's prediction in a dataset.
 VIDEO_EXTENSIONS = (".mkv", ".avi", ".mp4", ".mov", ".m4v", ".webm")
@@ -1002,10 +1002,9 @@ def evaluate(pred: PathLike, gt: PathLike, **options: Any) -> DatasetResult:
 
     A single sequence gives a result with one sequence, one category, and overall = it.
     """
-    for what, path in (("prediction", pred), ("ground truth", gt)):
-        if isinstance(path, (str, os.PathLike)) and not os.fspath(path).strip():
-            # Path("") is the current folder: never what was meant.
-            raise InputError(f"the {what} path is empty")
+    if isinstance(pred, (str, os.PathLike)):  # not masks handed over from Python
+        given_path(pred, what="prediction", hint="a mask folder or a mask video")
+    given_path(gt, what="ground truth", hint="a CDnet sequence folder or a dataset root")
     if not Path(gt).exists():
         raise InputError(f"ground truth {gt} does not exist")
     if is_sequence(gt):

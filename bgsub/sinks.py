@@ -37,7 +37,7 @@ from typing import Callable, Dict, Iterable, Iterator, List, Optional, Tuple, Un
 
 import numpy as np
 
-from bgsub.errors import OutputError, ProcessingError
+from bgsub.errors import OutputError, ProcessingError, given_path
 from bgsub.sources import quiet_opencv
 
 import cv2  # noqa: E402,I100 (bgsub.sources sets FFmpeg's log level before cv2 starts FFmpeg)
@@ -90,13 +90,8 @@ def _why_not_writable(path: Path) -> str:
     return ""
 
 
-def _output_given(path: PathLike) -> str:
-    """``path`` as text; :class:`OutputError` when it is empty, which ``Path`` would quietly
-    read as the current folder."""
-    text = os.fspath(path)
-    if not text.strip():
-        raise OutputError("the output path is empty; give a file or folder name")
-    return text
+def _output_path(path: PathLike) -> Path:
+    return Path(given_path(path, what="output", hint="a file or folder name", error=OutputError))
 
 
 def _check_writable_folder(folder: Path, output: Path) -> None:
@@ -119,7 +114,7 @@ def check_file_output(path: PathLike, *, overwrite: bool = False) -> Path:
     """Check that a file (a report, a model) can be written at ``path``; return it as a
     :class:`Path`. :class:`OutputError` when it is a folder, exists (without ``overwrite``),
     or its folder is missing or read-only. Nothing is written."""
-    output = Path(_output_given(path))
+    output = _output_path(path)
     if output.is_dir():
         raise OutputError(f"{output}: is a folder; give a file name")
     if output.exists() and not overwrite:
@@ -167,7 +162,7 @@ def check_video_output(path: PathLike, *, overwrite: bool = False,
     is missing or read-only. Nothing is written.
     """
     codecs = PICTURE_VIDEO_CODECS if codecs is None else codecs
-    output = Path(_output_given(path))
+    output = _output_path(path)
     if output.suffix.lower() not in codecs:
         known = ", ".join(sorted(codecs))
         raise OutputError(f"{output}: cannot write a video with this extension (use {known})")
@@ -185,7 +180,7 @@ def check_mask_output(path: PathLike, *, overwrite: bool = False) -> Path:
     an empty or unrelated folder is fine. Raises :class:`OutputError` otherwise (see
     :func:`check_video_output`).
     """
-    output = Path(_output_given(path))
+    output = _output_path(path)
     suffix = output.suffix.lower()
     if suffix in MASK_VIDEO_CODECS:
         return check_video_output(output, overwrite=overwrite, codecs=MASK_VIDEO_CODECS)

@@ -42,7 +42,7 @@ os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # AV_LOG_QUIET
 
 import cv2  # noqa: E402 (after the environment variable above)
 
-from bgsub.errors import InputError  # noqa: E402
+from bgsub.errors import InputError, given_path  # noqa: E402
 
 #: Side of the square patches the motion model reads; smaller frames cannot be processed.
 MIN_FRAME_SIZE = 13
@@ -398,10 +398,7 @@ def open_source(path: PathLike, *, start: int = 0, stop: Optional[int] = None, s
         reported when iteration reaches them.
     """
     _check_range(start, stop, step)
-    text = os.fspath(path)
-    if not text.strip():  # Path("") is the current folder: never what was meant
-        raise InputError("the input path is empty; give a video file, an image folder or a "
-                         "glob pattern")
+    text = given_path(path, what="input", hint="a video file, an image folder or a glob pattern")
     location = Path(text)
     if location.is_dir():
         backend = _folder_backend(location)

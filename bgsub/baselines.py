@@ -16,38 +16,18 @@ them 127; these engines map them to 0 (background), so the mask contract holds e
 
 from __future__ import annotations
 
-from typing import Any, Optional
+from typing import Any, Callable, Optional
 
 import cv2
 import numpy as np
 
-from bgsub.engines import Engine, Param, opencv_keywords, register_engine
+from bgsub.engines import (LEARNING_RATE, Engine, Param, check_fgmask, check_frame,
+                           check_learning_rate, opencv_keywords, register_engine)
 from bgsub.errors import InputError
 
 # OpenCV's non-shadow foreground value; everything at or below SHADOW_CUT (shadows are 127) is
 # background in a bgsub mask.
 _SHADOW_CUT = 127
-
-
-def _check_image(image: Any) -> np.ndarray:
-    """Validate one input frame: ``(H, W)`` or ``(H, W, 3)`` uint8."""
-    if not isinstance(image, np.ndarray) or image.dtype != np.uint8:
-        kind = getattr(image, "dtype", type(image).__name__)
-        raise InputError(f"engine input must be a uint8 numpy image, not {kind}")
-    if image.ndim == 2 or (image.ndim == 3 and image.shape[2] == 3):
-        if image.shape[0] == 0 or image.shape[1] == 0:
-            raise InputError(f"engine input is empty (shape {image.shape})")
-        return image
-    raise InputError(
-        f"engine input must be (H, W) gray or (H, W, 3) BGR, not shape {tuple(image.shape)}"
-    )
-
-
-def _check_learning_rate(learning_rate: float) -> float:
-    rate = float(learning_rate)
-    if not np.isfinite(rate) or rate > 1.0:
-        raise InputError(f"learning_rate must be in [0, 1] or negative (automatic), not {rate}")
-    return rate
 
 
 def _binarize_into(raw: np.ndarray, fgmask: Optional[np.ndarray]) -> np.ndarray:
@@ -58,7 +38,7 @@ def _binarize_into(raw: np.ndarray, fgmask: Optional[np.ndarray]) -> np.ndarray:
     raw : (H, W) uint8
         Mask as OpenCV returns it.
     fgmask : (H, W) uint8, optional
-        Output buffer, written in place.
+        Output buffer (already checked by :func:`check_fgmask`), written in place.
 
     Returns
     -------
@@ -67,13 +47,6 @@ def _binarize_into(raw: np.ndarray, fgmask: Optional[np.ndarray]) -> np.ndarray:
     if fgmask is None:
         _, out = cv2.threshold(raw, _SHADOW_CUT, 255, cv2.THRESH_BINARY)
         return out
-    if (
-        not isinstance(fgmask, np.ndarray)
-        or fgmask.dtype != np.uint8
-        or fgmask.shape != raw.shape
-    ):
-        got = getattr(fgmask, "shape", type(fgmask).__name__)
-        raise InputError(f"fgmask must be a {raw.shape} uint8 array, not {got}")
     cv2.threshold(raw, _SHADOW_CUT, 255, cv2.THRESH_BINARY, dst=fgmask)
     return fgmask
 
@@ -88,13 +61,25 @@ class OpenCVSubtractor(Engine):
 
     Parameters
     ----------
-    subtractor : cv2.BackgroundSubtractor
-        A configured MOG2 or KNN subtractor.
+    make : callable
+        ``make() -> cv2.BackgroundSubtractor``: a configured MOG2 or KNN subtractor; called
+        again for ``learning_rate=1`` ("restart from this frame").
+    learning_rate : float
+        The rate of a call to :meth:`apply` that gives none (negative: OpenCV's automatic).
+    min_rate : float
+        Rates in [0, ``min_rate``) are passed as ``min_rate``: OpenCV's KNN divides by
+        ``log(1 - rate)`` and at 0 stops detecting anything instead of freezing its model.
     """
 
-    def __init__(self, subtractor: Any) -> None:
-        self.subtractor = subtractor
-        self._started = False  # OpenCV's KNN crashes on getBackgroundImage() before any frame
+    def __init__(self, make: Callable[[], Any], *, learning_rate: float = -1.0,
+                 min_rate: float = 0.0) -> None:
+        self._make = make
+        self.subtractor = make()
+        self.learning_rate = float(learning_rate)
+        self.min_rate = float(min_rate)
+        # (H, W) of the stream, None before the first frame (OpenCV's KNN crashes on
+        # getBackgroundImage() then).
+        self._shape: Optional[tuple] = None
 
     @opencv_keywords
     def apply(
@@ -104,15 +89,22 @@ class OpenCVSubtractor(Engine):
         learning_rate: float = -1.0,
     ) -> np.ndarray:
         """Next frame -> ``(H, W) uint8`` 0/255 mask; see :meth:`bgsub.engines.Engine.apply`."""
-        image = _check_image(image)
-        rate = _check_learning_rate(learning_rate)
+        image = check_frame(image, shape=self._shape)
+        rate = check_learning_rate(learning_rate, default=self.learning_rate)
+        check_fgmask(fgmask, image.shape[:2])
+        if rate >= 1.0:
+            # A fresh model of this frame, the same way for both subtractors (KNN at rate 1
+            # calls every later pixel foreground).
+            self.subtractor, rate = self._make(), -1.0
+        elif 0.0 <= rate < self.min_rate:
+            rate = self.min_rate
         raw = self.subtractor.apply(image, learningRate=rate)
-        self._started = True
+        self._shape = image.shape[:2]
         return _binarize_into(raw, fgmask)
 
     def get_background_image(self) -> Optional[np.ndarray]:
         """OpenCV's background estimate (like the input: gray or BGR uint8), ``None`` at first."""
-        if not self._started:
+        if self._shape is None:
             return None
         return self.subtractor.getBackgroundImage()
 
@@ -147,6 +139,7 @@ _MOG2_PARAMS = {
         0.5, "a pixel is shadow if it is a darker version of the background by at most this "
         "factor (0.5: twice as dark is not a shadow; below 1)", above=0, high=1
     ),
+    "learning_rate": LEARNING_RATE,
 }
 
 
@@ -168,6 +161,7 @@ def make_mog2(
     var_max: float,
     complexity_reduction_threshold: float,
     shadow_threshold: float,
+    learning_rate: float,
 ) -> OpenCVSubtractor:
     """Build the ``mog2`` engine (parameters as in :data:`_MOG2_PARAMS`, OpenCV defaults)."""
     # Single-value bounds are checked from _MOG2_PARAMS when the engine is made; these involve
@@ -176,18 +170,22 @@ def make_mog2(
              f"mog2: parameter 'var_max' must be at least var_min={var_min:g}, not {var_max!r}")
     _require(shadow_threshold < 1,
              f"mog2: parameter 'shadow_threshold' must be below 1, not {shadow_threshold!r}")
-    sub = cv2.createBackgroundSubtractorMOG2(
-        history=int(history), varThreshold=float(var_threshold), detectShadows=bool(detect_shadows)
-    )
-    sub.setBackgroundRatio(float(background_ratio))
-    sub.setNMixtures(int(n_mixtures))
-    sub.setVarThresholdGen(float(var_threshold_gen))
-    sub.setVarInit(float(var_init))
-    sub.setVarMin(float(var_min))
-    sub.setVarMax(float(var_max))
-    sub.setComplexityReductionThreshold(float(complexity_reduction_threshold))
-    sub.setShadowThreshold(float(shadow_threshold))
-    return OpenCVSubtractor(sub)
+
+    def make() -> Any:
+        sub = cv2.createBackgroundSubtractorMOG2(
+            history=int(history), varThreshold=float(var_threshold),
+            detectShadows=bool(detect_shadows))
+        sub.setBackgroundRatio(float(background_ratio))
+        sub.setNMixtures(int(n_mixtures))
+        sub.setVarThresholdGen(float(var_threshold_gen))
+        sub.setVarInit(float(var_init))
+        sub.setVarMin(float(var_min))
+        sub.setVarMax(float(var_max))
+        sub.setComplexityReductionThreshold(float(complexity_reduction_threshold))
+        sub.setShadowThreshold(float(shadow_threshold))
+        return sub
+
+    return OpenCVSubtractor(make, learning_rate=learning_rate)
 
 
 _KNN_PARAMS = {
@@ -213,6 +211,7 @@ _KNN_PARAMS = {
         "created, for reproducible masks: KNN replaces stored samples at random; -1 leaves "
         "the generator alone", low=-1
     ),
+    "learning_rate": LEARNING_RATE,
 }
 
 
@@ -230,6 +229,7 @@ def make_knn(
     knn_samples: int,
     shadow_threshold: float,
     seed: int,
+    learning_rate: float,
 ) -> OpenCVSubtractor:
     """Build the ``knn`` engine (parameters as in :data:`_KNN_PARAMS`, OpenCV defaults).
 
@@ -243,24 +243,28 @@ def make_knn(
                                        f"n_samples={n_samples}, not {knn_samples!r}")
     _require(shadow_threshold < 1,
              f"knn: parameter 'shadow_threshold' must be below 1, not {shadow_threshold!r}")
-    sub = cv2.createBackgroundSubtractorKNN(
-        history=int(history), dist2Threshold=float(dist2_threshold),
-        detectShadows=bool(detect_shadows),
-    )
+
+    def make() -> Any:
+        sub = cv2.createBackgroundSubtractorKNN(
+            history=int(history), dist2Threshold=float(dist2_threshold),
+            detectShadows=bool(detect_shadows))
+        sub.setNSamples(int(n_samples))
+        sub.setkNNSamples(int(knn_samples))
+        sub.setShadowThreshold(float(shadow_threshold))
+        return sub
+
     if seed >= 0:
         cv2.setRNGSeed(int(seed))
-    sub.setNSamples(int(n_samples))
-    sub.setkNNSamples(int(knn_samples))
-    sub.setShadowThreshold(float(shadow_threshold))
-    return OpenCVSubtractor(sub)
+    # 1e-6: a sample kept for ~10^5 frames, frozen in practice (see OpenCVSubtractor).
+    return OpenCVSubtractor(make, learning_rate=learning_rate, min_rate=1e-6)
 
 
 class FrameDifference(Engine):
     """Foreground where the grey level changed by more than ``threshold`` since the last frame.
 
-    The first frame (and the first after a change of frame size) has no predecessor and gives an
-    empty mask. ``learning_rate=0`` keeps the current reference frame (OpenCV's "do not update");
-    any other value replaces it with the new frame.
+    The first frame has no predecessor and gives an empty mask. ``learning_rate=0`` keeps the
+    current reference frame (OpenCV's "do not update"); any other value replaces it with the
+    new frame.
 
     Parameters
     ----------
@@ -268,12 +272,16 @@ class FrameDifference(Engine):
         Grey-level difference (0-255) a pixel must exceed to be foreground.
     morph_size : int
         Side of the elliptic structuring element of a morphological opening that removes
-        isolated noise pixels; 0 turns it off.
+        isolated noise pixels; 0 or 1 turns it off.
+    learning_rate : float
+        The rate of a call to :meth:`apply` that gives none (negative: replace the reference).
     """
 
-    def __init__(self, *, threshold: int = 25, morph_size: int = 0) -> None:
+    def __init__(self, *, threshold: int = 25, morph_size: int = 0,
+                 learning_rate: float = -1.0) -> None:
         self.threshold = int(threshold)
         self.morph_size = int(morph_size)
+        self.learning_rate = float(learning_rate)
         self._kernel = (
             cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (self.morph_size, self.morph_size))
             if self.morph_size > 1
@@ -290,18 +298,19 @@ class FrameDifference(Engine):
         learning_rate: float = -1.0,
     ) -> np.ndarray:
         """Next frame -> ``(H, W) uint8`` 0/255 mask; see :meth:`bgsub.engines.Engine.apply`."""
-        image = _check_image(image)
-        rate = _check_learning_rate(learning_rate)
-        gray = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY) if image.ndim == 3 else image
         previous = self._previous_gray
-        if previous is None or previous.shape != gray.shape:
+        image = check_frame(image, shape=None if previous is None else previous.shape)
+        rate = check_learning_rate(learning_rate, default=self.learning_rate)
+        check_fgmask(fgmask, image.shape[:2])
+        gray = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY) if image.ndim == 3 else image
+        if previous is None:
             raw = np.zeros(gray.shape, np.uint8)
         else:
             _, raw = cv2.threshold(cv2.absdiff(gray, previous), self.threshold, 255,
                                    cv2.THRESH_BINARY)
             if self._kernel is not None:
                 raw = cv2.morphologyEx(raw, cv2.MORPH_OPEN, self._kernel)
-        if rate != 0.0 or previous is None or previous.shape != gray.shape:
+        if rate != 0.0 or previous is None:
             self._previous_gray = gray.copy()
             self._previous_image = image.copy()
         return _binarize_into(raw, fgmask)
@@ -321,8 +330,10 @@ class FrameDifference(Engine):
             0, "side of an elliptic opening that removes speckle noise (0 or 1: off)",
             low=0, high=31
         ),
+        "learning_rate": LEARNING_RATE,
     },
 )
-def make_framediff(*, threshold: int, morph_size: int) -> FrameDifference:
+def make_framediff(*, threshold: int, morph_size: int, learning_rate: float) -> FrameDifference:
     """Build the ``framediff`` engine."""
-    return FrameDifference(threshold=threshold, morph_size=morph_size)
+    return FrameDifference(threshold=threshold, morph_size=morph_size,
+                           learning_rate=learning_rate)

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import functools
 import importlib
+import math
+import numbers
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from typing import Any, Callable, Dict, Iterable, List, Optional
@@ -45,13 +47,68 @@ def opencv_keywords(apply: Callable[..., np.ndarray]) -> Callable[..., np.ndarra
             learning_rate = learningRate
         return apply(self, image, fgmask, learning_rate)
 
+    if wrapper.__doc__ is None:
+        wrapper.__doc__ = Engine.apply.__doc__  # help(engine.apply) shows the shared contract
     return wrapper
+
+
+def check_frame(image: Any, *, shape: Optional[tuple] = None) -> np.ndarray:
+    """Validate one input frame of an engine; the checks every engine's ``apply`` starts with.
+
+    Parameters
+    ----------
+    image : (H, W), (H, W, 1) or (H, W, 3) uint8 array
+    shape : (H, W), optional
+        The size of the stream's earlier frames: a frame of another size is refused (an
+        engine's model is of one size; a new stream needs a new engine).
+
+    Returns
+    -------
+    ``image``, or its ``(H, W)`` view when it has one channel.
+    """
+    if not isinstance(image, np.ndarray) or image.dtype != np.uint8:
+        kind = getattr(image, "dtype", type(image).__name__)
+        raise InputError(f"engine input must be a uint8 numpy image, not {kind}")
+    if not (image.ndim == 2 or (image.ndim == 3 and image.shape[2] in (1, 3))):
+        raise InputError(
+            f"engine input must be (H, W) gray or (H, W, 3) BGR, not shape {tuple(image.shape)}")
+    if image.shape[0] == 0 or image.shape[1] == 0:
+        raise InputError(f"engine input is empty (shape {image.shape})")
+    if shape is not None and image.shape[:2] != tuple(shape):
+        raise InputError(f"frame size changed from {shape[1]}x{shape[0]} to "
+                         f"{image.shape[1]}x{image.shape[0]} (a new stream needs a new engine)")
+    return image[:, :, 0] if image.ndim == 3 and image.shape[2] == 1 else image
+
+
+def check_learning_rate(learning_rate: Any, *, default: float = -1.0) -> float:
+    """``learning_rate`` as a float in [0, 1], or negative (automatic); a negative one is
+    replaced by ``default``, the engine's ``learning_rate`` parameter."""
+    try:
+        rate = float(learning_rate)
+    except (TypeError, ValueError):
+        raise InputError(f"learning_rate must be a number, not {learning_rate!r}") from None
+    if not np.isfinite(rate) or rate > 1.0:
+        raise InputError(f"learning_rate must be in [0, 1] or negative (automatic), not {rate}")
+    return float(default) if rate < 0 else rate
+
+
+def check_fgmask(fgmask: Any, shape: tuple) -> None:
+    """Refuse an ``fgmask`` output buffer that is not a ``shape`` (H, W) uint8 array; called
+    before the engine learns the frame, so a refused call leaves the engine as it was."""
+    if fgmask is None:
+        return
+    if not isinstance(fgmask, np.ndarray) or fgmask.dtype != np.uint8 or fgmask.shape != shape:
+        got = (f"{fgmask.dtype} {fgmask.shape}" if isinstance(fgmask, np.ndarray)
+               else type(fgmask).__name__)
+        raise InputError(f"fgmask must be a {tuple(shape)} uint8 array, not {got}")
 
 
 class Engine(ABC):
     """A background subtractor with OpenCV's ``BackgroundSubtractor`` shape.
 
-    Implementations decorate ``apply`` with :func:`opencv_keywords`."""
+    Implementations decorate ``apply`` with :func:`opencv_keywords` and start it with
+    :func:`check_frame`, :func:`check_learning_rate` and :func:`check_fgmask`, so every engine
+    refuses the same inputs with the same words before it changes state."""
 
     @abstractmethod
     def apply(
@@ -65,16 +122,25 @@ class Engine(ABC):
         Parameters
         ----------
         image : (H, W, 3) BGR or (H, W) gray uint8 array
-            The next frame of the stream.
+            The next frame of the stream, of the same size as the earlier ones (a frame of
+            another size raises :class:`~bgsub.errors.InputError`: a new stream needs a new
+            engine).
         fgmask : (H, W) uint8 array, optional
             Written in place when given (as OpenCV does).
         learning_rate : float
-            How fast the background model adapts, in [0, 1]; negative picks the engine's own
-            rate (OpenCV's convention).
+            How fast the background model adapts, as in OpenCV: negative = the engine's own
+            rate; 0 = do not update the model (it stays as it is while, say, a robot arm is in
+            view); 1 = restart it from this frame; in between, the rate for every pixel. Also
+            accepted as ``learningRate=``.
 
         Returns
         -------
         (H, W) uint8 array with values 0 (background) and 255 (foreground).
+
+        Raises
+        ------
+        InputError
+            For an invalid frame, ``fgmask`` or ``learning_rate``, before the engine changes.
         """
 
     def get_background_image(self) -> Optional[np.ndarray]:
@@ -82,8 +148,20 @@ class Engine(ABC):
         return None
 
     # OpenCV's camelCase names, so code written against cv2 runs as it is.
-    def getBackgroundImage(self) -> Optional[np.ndarray]:  # noqa: N802 (OpenCV's name)
-        return self.get_background_image()
+    def getBackgroundImage(self, backgroundImage: Optional[np.ndarray] = None  # noqa: N802,N803
+                           ) -> Optional[np.ndarray]:
+        """:meth:`get_background_image`; like OpenCV's, it also fills ``backgroundImage`` when
+        that is an array of the background's shape and dtype (and returns it)."""
+        image = self.get_background_image()
+        if backgroundImage is None or image is None:
+            return image
+        if (not isinstance(backgroundImage, np.ndarray) or backgroundImage.shape != image.shape
+                or backgroundImage.dtype != image.dtype):
+            got = getattr(backgroundImage, "shape", type(backgroundImage).__name__)
+            raise InputError(f"backgroundImage must be a {image.shape} {image.dtype} array, "
+                             f"not {got}")
+        backgroundImage[...] = image
+        return backgroundImage
 
 
 _C_INT_MAX = 2**31 - 1
@@ -130,12 +208,18 @@ class Param:
         return value
 
     def check(self, name: str, value: Any) -> None:
-        """Raise :class:`InputError` when ``value`` is outside ``choices`` or the bounds."""
+        """Raise :class:`InputError` when ``value`` is not of this parameter's type (that of
+        its default; an integer is also a number), not finite, or outside ``choices`` or the
+        bounds. A parameter whose default is not a bool, int, float or str (a model object)
+        takes any value."""
+        self._check_type(name, value)
         if self.choices is not None and value not in self.choices:
             allowed = ", ".join(map(str, self.choices))
             raise InputError(f"parameter {name!r} must be one of {allowed}, not {value!r}")
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
             return
+        if not math.isfinite(value):
+            raise InputError(f"parameter {name!r} must be a finite number, not {value!r}")
         if isinstance(value, int) and not -_C_INT_MAX <= value <= _C_INT_MAX:
             # Engines hand their integers to OpenCV, whose C ints cannot hold more.
             raise InputError(f"parameter {name!r} is too large: {value}")
@@ -146,6 +230,32 @@ class Param:
         if self.above is not None and not value > self.above:
             raise InputError(f"parameter {name!r} must be greater than {self.above:g}, "
                              f"not {value!r}")
+
+
+    def _check_type(self, name: str, value: Any) -> None:
+        kind = type(self.default)
+        if kind is bool:
+            ok = isinstance(value, (bool, np.bool_))
+        elif kind is int:
+            # Not a float, even 3.0: the engines would truncate 1.7 to 1 without a word.
+            ok = isinstance(value, numbers.Integral) and not isinstance(value, (bool, np.bool_))
+        elif kind is float:
+            ok = isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+        elif kind is str:
+            # A model parameter may also take the object itself (a GatedRBM) from Python.
+            ok = isinstance(value, str) or self.choices is None
+        else:
+            ok = True
+        if not ok:
+            raise InputError(f"parameter {name!r} takes {_KIND_NAMES.get(kind, kind.__name__)}, "
+                             f"not {value!r}")
+
+
+#: The ``learning_rate`` parameter every engine registers: the rate ``apply()`` uses when its
+#: caller gives none (``bgsub run --param learning_rate=0.01``, as MOG2 users set it).
+LEARNING_RATE = Param(-1.0, "background learning rate of every frame, as OpenCV's apply() takes "
+                            "it: -1 = the engine's own, 0 = never update the model, 1 = restart "
+                            "it every frame", low=-1.0, high=1.0)
 
 
 @dataclass(frozen=True)

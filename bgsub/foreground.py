@@ -5,8 +5,9 @@ Three pieces of evidence, fused into one clean mask:
 * :class:`CompensatedBackground`: per-pixel colour statistics (running mean and variance) kept in
   the *current* frame's coordinates: every frame the model is warped by the camera motion before
   it is compared and updated. Each pixel has an age (frames of history); pixels that scroll in at
-  the border start at age 0 and are never called foreground until they have ``min_age`` frames
-  of history (their statistics start from the current frame). Young pixels learn fast
+  the border start at age 0 and, until they have ``min_age`` frames of history, are not called
+  foreground on a background difference (they score ``young_score``, below the threshold): only
+  motion evidence can make them foreground (their statistics start from the current frame). Young pixels learn fast
   (rate ``1 / (age + 1)``, a plain average), old ones at ``alpha``. The comparison is against the
   background's local min/max envelope (``envelope`` px), so the sub-pixel misregistration that
   every warp leaves on strong edges does not light up as foreground.
@@ -61,13 +62,22 @@ class BackgroundParams:
         standard deviations ...
     min_diff : float
         ... and ``min_diff`` gray levels (guards low-variance pixels against noise).
-    init_std, min_std : float
-        Standard deviation given to new pixels, and the floor of the learnt one.
+    init_std : float
+        Scale of the variance update: a squared residual counts at most ``(4 init_std)^2``, so
+        a passing object cannot blind the model. Also the spread of the very first frame of a
+        model that was never :meth:`~CompensatedBackground.reset`; a pixel without history
+        otherwise takes the (clipped) residual of its first frame, and a model that is
+        :meth:`~CompensatedBackground.reset` and then updated with the same frame (as the
+        engines restart) starts at ``min_std`` (giving new pixels ``init_std`` instead measured
+        0.624 against 0.630 on the real set, issue 4).
+    min_std : float
+        The floor of the learnt standard deviation.
     envelope : int
         Side of the neighbourhood whose background min/max brackets a pixel (1 = the pixel
         only); 3 tolerates a one-pixel misregistration.
     min_age : int
-        Frames of history a pixel needs before it can be foreground.
+        Frames of history a pixel needs before a background difference can make it
+        foreground (younger pixels score ``young_score``).
     max_age : int
         Ages are capped here (only ``1 / (age + 1)`` depends on them).
     young_score : float
@@ -101,13 +111,10 @@ class CompensatedBackground:
         self.mean: Optional[np.ndarray] = None  # (H, W, C) float32, 0-255
         self.var: Optional[np.ndarray] = None  # (H, W, C) float32
         self.age: Optional[np.ndarray] = None  # (H, W) float32
-        # (frame, frame as float, frame - mean) from the last score(), reused by update() when
-        # it is given the same frame object and the model has not changed since.
+        # (frame, frame as float, frame - mean, its square or None) from the last score(),
+        # reused by update() when it is given the same frame object and the model has not
+        # changed since.
         self._diff: Optional[tuple] = None
-
-    @property
-    def initialised(self) -> bool:
-        return self.mean is not None
 
     @staticmethod
     def _as_float(frame: np.ndarray) -> np.ndarray:
@@ -196,11 +203,19 @@ class CompensatedBackground:
         ----------
         frame : (H, W, C) or (H, W) uint8
         fgmask : (H, W) uint8/bool, optional
-            Pixels called foreground learn at ``fg_alpha`` instead.
+            Pixels called foreground learn at ``fg_alpha`` instead (automatic rate only).
         learning_rate : float
-            Overrides ``alpha`` when in [0, 1] (OpenCV's convention: negative = own rate).
+            OpenCV's convention. Negative: the model's own rates (``1 / (age + 1)`` for young
+            pixels, ``alpha``, ``fg_alpha`` under ``fgmask``). In [0, 1]: every pixel with a
+            history learns at this rate, foreground or not; 0 leaves them unchanged and 1
+            restarts the model from ``frame``. Pixels without history (uncovered at the border)
+            take the frame whatever the rate: there is nothing else to put there.
         """
         p = self.params
+        if learning_rate >= 1.0 or self.mean is None:
+            self.reset(frame)
+            self.age[:] = 1.0
+            return
         cached, self._diff = self._diff, None
         sq = None
         if cached is not None and cached[0] is frame and self.mean is not None:
@@ -209,20 +224,23 @@ class CompensatedBackground:
         else:
             f = self._as_float(frame)
             d = None
-        if self.mean is None or self.mean.shape != f.shape:
+        if self.mean.shape != f.shape:
             self.reset(f)
             self.age[:] = 1.0
             return
         if d is None:
             d = f - self.mean
-        alpha = p.alpha if not 0.0 <= learning_rate <= 1.0 else learning_rate
         # rate = max(1 / (age + 1), alpha), in place (these are whole-frame float32 arrays).
         rate = self.age + np.float32(1.0)
         np.reciprocal(rate, out=rate)
-        np.maximum(rate, np.float32(alpha), out=rate)
-        if fgmask is not None:
-            fg = np.asarray(fgmask).astype(bool)
-            np.copyto(rate, np.float32(p.fg_alpha), where=fg & (self.age >= p.min_age))
+        if learning_rate >= 0.0:
+            # The caller's rate for every pixel with a history (age >= 1).
+            np.copyto(rate, np.float32(learning_rate), where=self.age >= 1.0)
+        else:
+            np.maximum(rate, np.float32(p.alpha), out=rate)
+            if fgmask is not None:
+                fg = np.asarray(fgmask).astype(bool)
+                np.copyto(rate, np.float32(p.fg_alpha), where=fg & (self.age >= p.min_age))
         r = _per_channel(rate, d.shape[2])
         d2 = np.multiply(d, d) if sq is None else sq
         d *= r

@@ -61,6 +61,7 @@ class GlobalMotion:
 
     @classmethod
     def identity(cls, n: int = 0, *, reason: str = "ok", ok: bool = True) -> "GlobalMotion":
+        """No motion, for ``n`` correspondences none of which is an inlier."""
         return cls(np.eye(3), np.zeros(n, bool), ok, reason)
 
     @property
@@ -186,12 +187,14 @@ def fit_global_motion(
     threshold : float
         RANSAC inlier distance in pixels (of ``dst``).
     min_weight : float
+        Correspondences of this weight or less are not used at all.
     min_points : int
-        Fewer usable correspondences than this -> not ``ok`` ("too few correspondences").
+        Fewer usable correspondences than this (or than the model's minimum) -> not ``ok``
+        ("too few correspondences").
     min_inlier_ratio : float
-        Fewer inliers than this fraction of the usable correspondences (and fewer than
-        ``min_points``) -> not ``ok``. RANSAC needs the camera's motion to be the largest
-        consistent group, not a majority: 0.2 tolerates 80% outliers.
+        Fewer inliers than this fraction of the usable correspondences, or fewer than
+        ``min_points`` -> not ``ok`` ("too few inliers"). RANSAC needs the camera's motion to
+        be the largest consistent group, not a majority: 0.2 tolerates 80 % outliers.
     max_points, max_iters, confidence : RANSAC budget.
     frame_size : (width, height), optional
         Enables the plausibility check of the corner displacements.

@@ -29,9 +29,11 @@ from typing import Any, Callable, Iterator, Optional
 import cv2
 import numpy as np
 
-from bgsub.engines import Engine, Param, opencv_keywords, register_engine
+from bgsub.engines import (LEARNING_RATE, Engine, Param, check_fgmask, check_frame,
+                           check_learning_rate, opencv_keywords, register_engine)
 from bgsub.errors import InputError
-from bgsub.flowfield import FramePyramid, estimate_flow, prepare_first_frame
+from bgsub.flowfield import FramePyramid, dense_from_patches, estimate_flow, prepare_first_frame
+from bgsub.flowio import draw_flow_arrows, flow_to_color
 from bgsub.foreground import (
     BackgroundParams,
     CompensatedBackground,
@@ -39,13 +41,14 @@ from bgsub.foreground import (
     fuse_masks,
     still_in_image_map,
 )
-from bgsub.global_motion import GlobalMotion, apply_homography, fit_global_motion
+from bgsub.global_motion import MODELS, GlobalMotion, apply_homography, fit_global_motion
 
 __all__ = ["MovingCameraEngine", "GrbmEngine", "CompensatedEngine", "MotionResult",
-           "limited_threads"]
+           "GRBM_TUNED", "limited_threads"]
 
 
 # The narrowest working frame: a few 13x13 patches across, so a motion can be read at all.
+# Resizing to ``work_width`` never makes the short side smaller than this either.
 MIN_WORK_WIDTH = 32
 
 
@@ -164,25 +167,20 @@ class MotionResult:
     violation_weights: Optional[np.ndarray] = None
 
 
-def _check_image(image: Any) -> np.ndarray:
-    if not isinstance(image, np.ndarray) or image.dtype != np.uint8:
-        kind = getattr(image, "dtype", type(image).__name__)
-        raise InputError(f"engine input must be a uint8 numpy image, not {kind}")
-    if not (image.ndim == 2 or (image.ndim == 3 and image.shape[2] in (1, 3))):
-        raise InputError(
-            f"engine input must be (H, W) gray or (H, W, 3) BGR, not shape {tuple(image.shape)}")
-    if image.shape[0] == 0 or image.shape[1] == 0:
-        raise InputError(f"engine input is empty (shape {image.shape})")
-    return image[:, :, 0] if image.ndim == 3 and image.shape[2] == 1 else image
+_NONE = np.zeros((0, 2), np.float32)
+#: The motion of a repeated frame: none, measured from no correspondences.
+_NO_MOTION = MotionResult(_NONE, _NONE, np.zeros(0, np.float32), GlobalMotion.identity(0))
 
 
 class MovingCameraEngine(Engine):
     """Shared per-frame logic; subclasses implement :meth:`_motion` (the front end).
 
-    Parameters (keyword-only; ``bgsub methods`` prints each one's meaning)
+    Parameters (keyword-only; ``bgsub methods`` prints the meaning of each, except
+    ``min_contrast``, ``scene_cut`` and ``cut_support``, which only Python callers set)
     ----------
     work_width : int
-        Frames wider than this are processed resized to it (0 = input size).
+        Frames wider than this are processed resized to it (0 = input size), keeping a height
+        of at least ``MIN_WORK_WIDTH`` (or the frame's own).
     motion_model, ransac_threshold : RANSAC camera motion (:func:`fit_global_motion`).
     background : BackgroundParams
         The compensated background model's parameters.
@@ -199,6 +197,9 @@ class MovingCameraEngine(Engine):
         with the fitted motion (or more than 80 % differ) restarts the model.
     heal_below : float
         Differences where the violation map is below this are learnt at the normal rate.
+    learning_rate : float
+        The background model's rate when :meth:`apply` is given none (negative: its own;
+        see :meth:`CompensatedBackground.update`).
     still_cue : float
         Weight of :func:`still_in_image_map` (an object the camera follows stays put in the
         image); the violation map is the larger of the two (0 = flow violation only).
@@ -240,6 +241,7 @@ class MovingCameraEngine(Engine):
         fill_holes: int = 5000,
         overlap: int = 1,
         still_cue: float = 1.0,
+        learning_rate: float = -1.0,
     ) -> None:
         if 0 < work_width < MIN_WORK_WIDTH:
             # Refused here, before any output is opened, rather than at the first frame.
@@ -264,6 +266,7 @@ class MovingCameraEngine(Engine):
         self.threads = int(threads)
         self.overlap = int(overlap)
         self.still_cue = float(still_cue)
+        self.learning_rate = float(learning_rate)
         self.last_status = "ok"
         self._worker: Optional[concurrent.futures.ThreadPoolExecutor] = None
         # The previous frame as the front end keeps it (see _frame_data), working size.
@@ -274,6 +277,7 @@ class MovingCameraEngine(Engine):
         self._pending: Optional[tuple] = None
         self._prev_motion: Optional[np.ndarray] = None  # last good (3, 3)
         self._last: Optional[MotionResult] = None
+        self._last_flow: Any = None  # the front end's last dense readout, if any (debug views)
         self._last_frame: Optional[np.ndarray] = None
         self._last_mask: Optional[np.ndarray] = None
         self._in_shape: Optional[tuple] = None
@@ -283,7 +287,10 @@ class MovingCameraEngine(Engine):
     def _work_size(self, w: int, h: int) -> tuple:
         if self.work_width <= 0 or w <= self.work_width:
             return w, h
-        return self.work_width, max(1, int(round(h * self.work_width / w)))
+        # A wide, flat frame keeps a height of MIN_WORK_WIDTH (or its own, if less) rather than
+        # shrinking below what a patch grid can read.
+        scale = max(self.work_width / w, min(1.0, MIN_WORK_WIDTH / h))
+        return max(1, int(round(w * scale))), max(1, int(round(h * scale)))
 
     def _to_work(self, image: np.ndarray) -> np.ndarray:
         h, w = image.shape[:2]
@@ -300,6 +307,10 @@ class MovingCameraEngine(Engine):
         return np.where(up > 127, 255, 0).astype(np.uint8)
 
     # ------------------------------------------------------------------ the front end
+
+    def _check_size(self, gray: np.ndarray) -> None:
+        """Refuse a stream whose (working-size) frames the front end cannot read at all;
+        called on the first frame, before any mask is returned."""
 
     @abstractmethod
     def _motion(self, prev: Any, cur: Any, prior: Optional[np.ndarray]) -> MotionResult:
@@ -326,13 +337,9 @@ class MovingCameraEngine(Engine):
     @opencv_keywords
     def apply(self, image: np.ndarray, fgmask: Optional[np.ndarray] = None,
               learning_rate: float = -1.0) -> np.ndarray:
-        image = _check_image(image)
-        rate = float(learning_rate)
-        if not np.isfinite(rate) or rate > 1.0:
-            raise InputError(f"learning_rate must be in [0, 1] or negative (automatic), not {rate}")
-        if self._in_shape is not None and image.shape[:2] != self._in_shape:
-            raise InputError(f"frame size changed from {self._in_shape[1]}x{self._in_shape[0]} "
-                             f"to {image.shape[1]}x{image.shape[0]}")
+        image = check_frame(image, shape=self._in_shape)
+        rate = check_learning_rate(learning_rate, default=self.learning_rate)
+        check_fgmask(fgmask, image.shape[:2])
         self._in_shape = image.shape[:2]
         with limited_threads(self.threads):
             work = self._to_work(image)
@@ -345,8 +352,6 @@ class MovingCameraEngine(Engine):
         self._last_frame, self._last_mask = work, mask
         out = self._to_input(mask)
         if fgmask is not None:
-            if not isinstance(fgmask, np.ndarray) or fgmask.shape != out.shape or fgmask.dtype != np.uint8:
-                raise InputError(f"fgmask must be a {out.shape} uint8 array")
             fgmask[...] = out
             return fgmask
         return out
@@ -360,13 +365,21 @@ class MovingCameraEngine(Engine):
             self.last_status = "fallback: blank or textureless frame"
             return empty
         if self._prev is None:
+            self._check_size(gray)
             self._restart(work, gray)
             self.last_status = "ok"
             return empty
 
         cur = self._frame_data(gray)
         with self._alongside(self._finish_update, lambda: self._prepare(cur)):
-            result = self._motion(self._prev, cur, self._prev_motion)
+            if np.array_equal(gray, self._prev_gray):
+                # A repeated frame (a frame-rate conversion's duplicate, a paused stream): the
+                # camera did not move, whatever a noisy reading would say; a frozen model
+                # (learning_rate=0) would otherwise drift by that reading's error.
+                result = _NO_MOTION
+                self._last_flow = None
+            else:
+                result = self._motion(self._prev, cur, self._prev_motion)
         self._last = result
         status = "ok"
         matrix = result.motion.matrix
@@ -401,6 +414,8 @@ class MovingCameraEngine(Engine):
         old = max(int(np.count_nonzero(~young)), 1)
         used = max(int(np.count_nonzero(result.weights > 0)), 1)
         support = result.motion.n_inliers / used if result.motion.ok else 0.0
+        if result is _NO_MOTION:
+            support = 1.0  # a repeated frame is no new shot
         changed = np.count_nonzero((score > 1.0) & ~young) / old  # of the pixels with history
         if (changed > self.scene_cut and support < self.cut_support) or changed > 0.8:
             self._restart(work, gray, cur)
@@ -471,12 +486,13 @@ class MovingCameraEngine(Engine):
         self._prev_motion = None
 
     def get_background_image(self) -> Optional[np.ndarray]:
+        """The background model's mean in the current frame's coordinates, at the input size
+        (like the input: gray or BGR uint8), or None before the first frame."""
         self._finish_update()
         img = self.bg.background_image()
         if img is None or self._in_shape is None:
             return img
-        h, w = self._in_shape
-        return cv2.resize(img, (w, h), interpolation=cv2.INTER_LINEAR)
+        return self._to_input_image(img)
 
     def debug_image(self) -> Optional[np.ndarray]:
         """The last frame (working size, scaled to the input) with the motion vectors drawn:
@@ -496,12 +512,8 @@ class MovingCameraEngine(Engine):
         res = self._last
         h, w = canvas.shape[:2]
         scale = 3.0
-        try:
-            from bgsub.flowio import draw_flow_arrows
-        except ImportError:  # flowio is optional; without it only the mask tint is drawn
-            return self._to_input_image(canvas)
         use = res.weights > 0
-        inl = res.motion.inliers if len(res.motion.inliers) == len(res.points) else np.zeros(len(res.points), bool)
+        inl = res.motion.inliers  # over all of res.points (GlobalMotion's contract)
         # Arrows end where the point went (drawn from the previous position).
         canvas = draw_flow_arrows(canvas, res.points[use & ~inl], res.disp[use & ~inl],
                                   scale=scale, color=(0, 0, 255), dot_color=None)
@@ -596,8 +608,26 @@ class _LKFrame:
     corners: Optional[np.ndarray] = None
 
 
+# The gated RBM's flow-violation evidence is dense but noisier than tracked corners: weakly
+# textured object patches read the camera's motion and would damp true objects, so its engine
+# leans on violation evidence to boost rather than to damp. How noisy its vectors are depends
+# on the footage (sharp BMS-26 vs blurred CDnet traffic), so a violation is a disagreement of
+# 0.75 px or 4 robust standard deviations of the frame's disagreements, whichever is larger
+# (the same rule gives compensated nothing). With the coarsest level read to convergence its
+# vectors support a homography at a tighter 1 px RANSAC threshold. Tuned on the real set
+# (docs/BENCHMARKS.md, issue 4, "What was tried"). The defaults of GrbmEngine() and of
+# create_engine("grbm") alike.
+GRBM_TUNED = dict(ransac_threshold=1.0, flow_boost=1.5, flow_damp=0.2, violation_threshold=0.75,
+                  violation_noise=4.0)
+
+
 class GrbmEngine(MovingCameraEngine):
-    """Gated-RBM front end: coarse-to-fine patch displacements from the factored 3-way RBM."""
+    """Gated-RBM front end: coarse-to-fine patch displacements from the factored 3-way RBM.
+
+    Takes the parameters ``bgsub methods grbm`` lists (those of the background model as a
+    :class:`BackgroundParams` ``background=``); the shared ones default to
+    :data:`GRBM_TUNED` where it has them, as with ``create_engine("grbm")``.
+    """
 
     name = "grbm"
 
@@ -610,7 +640,7 @@ class GrbmEngine(MovingCameraEngine):
                  search_below: float = 0.9, coarser_stride: int = 16,
                  start_tolerance: float = 0.015, converged: float = 0.1,
                  start_model: str = "translation", **kwargs: Any) -> None:
-        super().__init__(**kwargs)
+        super().__init__(**{**GRBM_TUNED, **kwargs})
         from bgsub.rbm import load_model
 
         # A name or path, a GatedRBM, or any patch-motion model with the same contract (see
@@ -668,35 +698,25 @@ class GrbmEngine(MovingCameraEngine):
         """``(flow, motion, support)``: the readout with its final level ``finest`` (on a grid
         of ``stride`` working-size pixels, default the engine's), the camera motion fitted to
         it and the fraction of its usable patches that agree with it."""
-        flow = self._flow(prev, cur, prior, finest, stride)
-        motion = self._fit(flow.centres, flow.disp, flow.weights, cur.shape)
-        used = max(int(np.count_nonzero(flow.weights > 0)), 1)
-        return flow, motion, (motion.n_inliers / used if motion.ok else 0.0)
-
-    def _flow(self, prev: FramePyramid, cur: FramePyramid, prior: Optional[np.ndarray],
-              finest: Optional[int] = None, stride: Optional[int] = None):
         levels = self.levels
         if prior is not None and levels is None:
             # The previous frame's motion predicts this one to within a few pixels: two levels
             # cover that; a camera that changes course fails the support test and is retried
             # with the full pyramid.
             levels = self.prior_levels if self.prior_levels > 0 else None
-        settings = self._flow_settings(levels, self.finest if finest is None else finest, stride)
-        return estimate_flow(prev, cur, prior=prior, search=self.search,
+        flow = estimate_flow(prev, cur, prior=prior, search=self.search,
                              coarse_iterations=self.coarse_iterations,
                              search_below=self.search_below, start_model=self.start_model,
-                             converged=self.converged, **settings)
+                             converged=self.converged,
+                             **self._flow_settings(levels, finest, stride))
+        motion = self._fit(flow.centres, flow.disp, flow.weights, cur.shape)
+        used = max(int(np.count_nonzero(flow.weights > 0)), 1)
+        return flow, motion, (motion.n_inliers / used if motion.ok else 0.0)
 
     def _flow_colour(self, shape: tuple) -> Optional[np.ndarray]:
-        flow = getattr(self, "_last_flow", None)
+        flow = self._last_flow
         if flow is None:
             return None
-        try:
-            from bgsub.flowio import flow_to_color
-        except ImportError:
-            return None
-        from bgsub.flowfield import dense_from_patches
-
         dense = dense_from_patches(flow, shape=shape, patch_size=int(self.model.patch_size))
         return flow_to_color(dense, max_magnitude=max(4.0, self.max_motion / 4))
 
@@ -709,14 +729,16 @@ class GrbmEngine(MovingCameraEngine):
             w[flow.beyond] = flow.texture[flow.beyond]
         return w
 
-    def _motion(self, prev: FramePyramid, cur: FramePyramid,
-                prior: Optional[np.ndarray]) -> MotionResult:
+    def _check_size(self, gray: np.ndarray) -> None:
         patch = int(getattr(self.model, "patch_size", 0) or 0)
-        if min(cur.shape) < patch:
+        if min(gray.shape) < patch:
             # Every frame would fall back to "no correspondences": a model for other footage.
-            h, w = cur.shape
+            h, w = gray.shape
             raise InputError(f"frames of {w}x{h} (working size) are smaller than the model's "
                              f"{patch}x{patch} patches")
+
+    def _motion(self, prev: FramePyramid, cur: FramePyramid,
+                prior: Optional[np.ndarray]) -> MotionResult:
         flow, motion, support = self._read(prev, cur, prior, self.finest)
         finest = self.finest
         # Low support at the final level means the model cannot read it (motion blur, heavy
@@ -724,7 +746,8 @@ class GrbmEngine(MovingCameraEngine):
         # is halved, reads consistently: try one or two levels coarser and keep the reading
         # the most patches agree with. Those re-reads use a sparser grid (coarser_stride): as
         # dense in the half-size image's own pixels as the first readout's in the full one,
-        # which also reads better there (real set 0.546 -> 0.562) and costs a quarter.
+        # which also reads better there (real set 0.546 -> 0.562 when it was introduced) and
+        # costs a quarter.
         while (support < self.coarser_below and finest < self.finest + 2
                and finest + 1 < flow.levels):
             finest += 1
@@ -751,10 +774,11 @@ class GrbmEngine(MovingCameraEngine):
 
 _COMMON = {
     "work_width": Param(320, "process frames resized to this width (0 = input size, else at "
-                             f"least {MIN_WORK_WIDTH}); the mask is returned at the input size",
+                             f"least {MIN_WORK_WIDTH}), but never to a height below "
+                             f"{MIN_WORK_WIDTH}; the mask is returned at the input size",
                         low=0),
     "motion_model": Param("homography", "camera motion model fitted by RANSAC",
-                          choices=("homography", "affine", "similarity", "translation")),
+                          choices=MODELS),
     "ransac_threshold": Param(1.5, "RANSAC inlier distance in working-size pixels", above=0),
     "alpha": Param(0.1, "background learning rate of pixels with a long history", low=0, high=1),
     "fg_alpha": Param(0.01, "learning rate of pixels called foreground (lets ghosts fade)",
@@ -764,7 +788,8 @@ _COMMON = {
     "envelope": Param(1, "a pixel is compared with the background's min/max over this "
                          "neighbourhood (3 tolerates a 1-px misregistration)",
                       low=1, high=31),
-    "min_age": Param(1, "frames of history a pixel needs before it can be foreground", low=0),
+    "min_age": Param(1, "frames of history a pixel needs before a background difference "
+                        "can make it foreground (see young_score)", low=0),
     "young_score": Param(0.6, "score of pixels younger than min_age (below 1: foreground only "
                               "where local motion evidence boosts it; 0 = never)", low=0, high=1),
     "flow_boost": Param(0.8, "where local motion violates the camera's, the background "
@@ -790,6 +815,7 @@ _COMMON = {
     "still_cue": Param(1.0, "weight of the evidence that a pixel stays put in the image while "
                             "the camera moves (an object the camera follows; 0 = off)",
                        low=0, high=1),
+    "learning_rate": LEARNING_RATE,
     "heal_below": Param(0.25, "background differences where the local motion agrees with the "
                               "camera (violation below this) are learnt at the normal rate "
                               "(ghost healing)", low=0),
@@ -813,17 +839,7 @@ def _with_defaults(common: dict, **overrides: Any) -> dict:
     return out
 
 
-# The gated RBM's flow-violation evidence is dense but noisier than tracked corners: weakly
-# textured object patches read the camera's motion and would damp true objects, so its engine
-# leans on violation evidence to boost rather than to damp. How noisy its vectors are depends
-# on the footage (sharp BMS-26 vs blurred CDnet traffic), so a violation is a disagreement of
-# 0.75 px or 4 robust standard deviations of the frame's disagreements, whichever is larger
-# (BMS-26 0.67 -> 0.72, DAVIS 0.58 -> 0.63; the same rule gives compensated nothing). With the
-# coarsest level read to convergence its vectors support a homography (DAVIS perspective
-# scenes: 0.58 vs 0.53 with a similarity) at a tighter 1 px RANSAC threshold. Tuned on the real
-# set (docs/BENCHMARKS.md, issue 4).
-_GRBM_COMMON = _with_defaults(_COMMON, ransac_threshold=1.0, flow_boost=1.5, flow_damp=0.2,
-                              violation_threshold=0.75, violation_noise=4.0)
+_GRBM_COMMON = _with_defaults(_COMMON, **GRBM_TUNED)
 
 
 @register_engine(
@@ -840,7 +856,8 @@ _GRBM_COMMON = _with_defaults(_COMMON, ransac_threshold=1.0, flow_boost=1.5, flo
                              low=0, high=1),
         "max_patches": Param(0, "evaluate at most this many patches per level (0 = all)", low=0),
         "iterations": Param(1, "readouts at the finest level, each re-warped by the last fit "
-                               "(2: real set F 0.620 instead of 0.617, ~20 % slower)", low=1),
+                               "(more: a little more accurate, slower; docs/BENCHMARKS.md)",
+                            low=1, high=10),
         "finest": Param(0, "pyramid level of the final readout (1 = half the working size: "
                            "faster, and better on blurry footage)", low=0),
         "refine_stride": Param(16, "patch grid step of the finest-level readouts that only "
@@ -849,7 +866,7 @@ _GRBM_COMMON = _with_defaults(_COMMON, ransac_threshold=1.0, flow_boost=1.5, flo
                                    "accuracy", low=0),
         "coarse_iterations": Param(3, "readouts at the coarsest pyramid level, each re-warped "
                                       "by the last fit (finer levels start close and read once)",
-                                      low=1),
+                                      low=1, high=20),
         "converged": Param(0.1, "stop re-reading the coarsest level once a readout moved its "
                                 "fitted motion by less than this many of that level's pixels "
                                 "at the corners: a steady pan the previous motion predicts "
@@ -870,7 +887,7 @@ _GRBM_COMMON = _with_defaults(_COMMON, ransac_threshold=1.0, flow_boost=1.5, flo
                                     "readouts (0 = stride): 2 x stride is as dense in a "
                                     "half-size image as stride in the full one", low=0),
         "search": Param(1, "also start the coarsest level from a (2 search + 1)^2 grid of "
-                           "shifts (shaking cameras); 0 = prior and identity only", low=0),
+                           "shifts (shaking cameras); 0 = prior and identity only", low=0, high=8),
         "search_below": Param(0.9, "with search > 0: read the grid of shifts only when fewer "
                                    "than this fraction of the coarsest patches agree with the "
                                    "better of the previous motion and no motion (1 = always; "
@@ -883,7 +900,7 @@ _GRBM_COMMON = _with_defaults(_COMMON, ransac_threshold=1.0, flow_boost=1.5, flo
                                             "coarsest level (its few patches fit a richer "
                                             "model's zoom to noise; the re-reads that follow "
                                             "fit the full model)",
-                             choices=("translation", "similarity", "affine", "homography")),
+                             choices=MODELS),
         "prior_levels": Param(0, "pyramid levels used when the previous frame's motion "
                                  "predicts this one (0 = always the full pyramid)", low=0),
         "retry_below": Param(0.6, "with prior_levels > 0: when fewer than this fraction of the "

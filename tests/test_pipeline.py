@@ -194,7 +194,8 @@ def test_engines_registered_with_documented_params():
     ("grbm", {"stride": 0}, "'stride' must be at least 1"),
     ("grbm", {"ransac_threshold": 0.0}, "greater than 0"),  # a bound kept by grbm's own default
     ("grbm", {"alpha": 2.0}, "'alpha' must be at most 1"),
-    ("grbm", {"fg_alpha": float("nan")}, "'fg_alpha' must be at least 0"),
+    ("grbm", {"fg_alpha": float("nan")}, "'fg_alpha' must be a finite number"),
+    ("grbm", {"search": 9}, "'search' must be at most 8"),  # (2 search + 1)^2 starts at once
     ("compensated", {"close": -1}, "'close' must be at least 0"),
     ("compensated", {"max_corners": 0}, "'max_corners' must be at least 1"),
     ("compensated", {"lk_window": 100_000}, "'lk_window' must be at most 255"),
@@ -216,9 +217,42 @@ def test_frames_smaller_than_the_models_patches_are_refused():
                             rng=np.random.default_rng(0))
     eng = create_engine("grbm", model=model)
     frame = np.random.default_rng(1).integers(0, 255, (32, 64), dtype=np.uint8)
-    eng.apply(frame)
     with pytest.raises(InputError, match="smaller than the model's 41x41 patches"):
-        eng.apply(frame)
+        eng.apply(frame)  # the first frame: before any mask (or output) is made
+
+
+@pytest.mark.parametrize("size, work", [
+    ((700, 20), (700, 20)),  # shorter than MIN_WORK_WIDTH already: not resized
+    ((1000, 60), (533, 32)),  # 320 wide would leave 19 rows: the height stops at 32
+    ((640, 480), (320, 240)),
+])
+def test_resizing_to_the_work_width_keeps_a_readable_height(size, work):
+    eng = create_engine("grbm")
+    assert eng._work_size(*size) == work
+
+
+def test_a_wide_flat_video_runs_at_the_default_work_width():
+    rng = np.random.default_rng(2)
+    texture = cv2.resize(rng.integers(0, 255, (20, 260), dtype=np.uint8), (1040, 80))
+    eng = create_engine("grbm")
+    for shift in range(3):
+        mask = eng.apply(np.ascontiguousarray(texture[:, 4 * shift:4 * shift + 1000]))
+    assert mask.shape == (80, 1000) and eng.last_status == "ok"
+
+
+def test_grbm_engine_class_has_the_registered_defaults():
+    """GrbmEngine() and create_engine("grbm") are the same engine (README's figures)."""
+    from bgsub.pipeline import CompensatedEngine, GrbmEngine
+
+    for cls, name in ((GrbmEngine, "grbm"), (CompensatedEngine, "compensated")):
+        direct, registered = cls(), create_engine(name)
+        for key, value in vars(registered).items():
+            if key.startswith("_") or key == "model":
+                continue
+            other = vars(direct)[key]
+            if key == "bg":
+                value, other = value.params, other.params
+            assert other == value, (name, key)
 
 
 def test_parameters_at_their_bounds_are_accepted():

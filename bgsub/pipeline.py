@@ -357,6 +357,8 @@ class MovingCameraEngine(Engine):
         return out
 
     def _step(self, work: np.ndarray, gray: np.ndarray, rate: float) -> np.ndarray:
+        """One frame at the working size: the steps of the module docstring. ``work`` is the
+        frame (BGR or gray), ``gray`` its gray image, ``rate`` the checked learning rate."""
         empty = np.zeros(gray.shape, np.uint8)
         self._last = None
         if float(cv2.meanStdDev(gray)[1][0, 0]) < self.min_contrast:
@@ -370,6 +372,7 @@ class MovingCameraEngine(Engine):
             self.last_status = "ok"
             return empty
 
+        # 2-3. The camera's motion, while the other thread finishes the last frame's update.
         cur = self._frame_data(gray)
         with self._alongside(self._finish_update, lambda: self._prepare(cur)):
             if np.array_equal(gray, self._prev_gray):
@@ -386,45 +389,25 @@ class MovingCameraEngine(Engine):
         if not result.motion.ok:
             status = f"fallback: {result.motion.reason}"
             matrix = self._prev_motion if self._prev_motion is not None else np.eye(3)
-        violation: list = []  # the flow-violation map, made alongside the background's warp
+
+        # 4. The background compared in this frame's coordinates, while the other thread
+        # makes the violation map.
+        violation: list = []
         prev_gray = self._prev_gray
-
-        def make_violation() -> None:
-            if self.flow_boost != 0.0 or self.flow_damp != 0.0:
-                vw = (result.weights if result.violation_weights is None
-                      else result.violation_weights)
-                v = flow_violation_map(
-                    result.points, result.disp, matrix, weights=vw, shape=gray.shape,
-                    threshold=self.violation_threshold, noise_scale=self.violation_noise)
-                if self.still_cue > 0 and prev_gray is not None:
-                    # Either kind of motion evidence counts: the cue is near 0 where it has
-                    # none (a still camera, the background), so it never lowers the flow's.
-                    still = still_in_image_map(prev_gray, gray, matrix)
-                    still *= np.float32(self.still_cue)
-                    np.maximum(v, still, out=v)
-                violation.append(v)
-
-        with self._alongside(make_violation):
+        with self._alongside(lambda: violation.append(
+                self._violation_map(result, matrix, prev_gray, gray))):
             self.bg.warp(matrix)
             score = self.bg.score(work)
-        # Scene cut: after compensation most of the frame still differs (a new shot) and the
-        # motion estimate has little support (a new shot has no consistent motion), or nearly
-        # all of it differs whatever the motion estimate says.
-        young = self.bg.age < self.bg.params.min_age
-        old = max(int(np.count_nonzero(~young)), 1)
-        used = max(int(np.count_nonzero(result.weights > 0)), 1)
-        support = result.motion.n_inliers / used if result.motion.ok else 0.0
-        if result is _NO_MOTION:
-            support = 1.0  # a repeated frame is no new shot
-        changed = np.count_nonzero((score > 1.0) & ~young) / old  # of the pixels with history
-        if (changed > self.scene_cut and support < self.cut_support) or changed > 0.8:
+        if self._is_scene_cut(score, result):
             self._restart(work, gray, cur)
             self.last_status = "fallback: scene cut"
             return empty
-        violation = violation[0] if violation else None
+        violation = violation[0]
         mask = fuse_masks(score, violation, flow_boost=self.flow_boost, flow_damp=self.flow_damp,
                           threshold=self.threshold, min_area=self.min_area, close=self.close,
                           fill_holes=self.fill_holes)
+
+        # The update is deferred to the next frame (its other thread).
         learn_slowly = mask > 0
         if violation is not None:
             # Where the local motion confidently agrees with the camera's, a background
@@ -438,6 +421,38 @@ class MovingCameraEngine(Engine):
             self._prev_motion = result.motion.matrix
         self.last_status = status
         return mask
+
+    def _violation_map(self, result: MotionResult, matrix: np.ndarray, prev_gray: np.ndarray,
+                       gray: np.ndarray) -> Optional[np.ndarray]:
+        """``(h, w) float32`` in [0, 1]: the evidence that a pixel moves otherwise than the
+        camera (``matrix``): the flow violation of ``result``'s vectors and the still-in-image
+        cue of the two gray frames, whichever is larger. None when the fusion ignores it."""
+        if self.flow_boost == 0.0 and self.flow_damp == 0.0:
+            return None
+        weights = result.weights if result.violation_weights is None else result.violation_weights
+        v = flow_violation_map(result.points, result.disp, matrix, weights=weights,
+                               shape=gray.shape, threshold=self.violation_threshold,
+                               noise_scale=self.violation_noise)
+        if self.still_cue > 0:
+            # Either kind of motion evidence counts: the cue is near 0 where it has none (a
+            # still camera, the background), so it never lowers the flow's.
+            still = still_in_image_map(prev_gray, gray, matrix)
+            still *= np.float32(self.still_cue)
+            np.maximum(v, still, out=v)
+        return v
+
+    def _is_scene_cut(self, score: np.ndarray, result: MotionResult) -> bool:
+        """After compensation most of the frame still differs (a new shot) and the motion
+        estimate has little support (a new shot has no consistent motion), or nearly all of it
+        differs whatever the motion estimate says. Counted over the pixels with history."""
+        young = self.bg.age < self.bg.params.min_age
+        old = max(int(np.count_nonzero(~young)), 1)
+        used = max(int(np.count_nonzero(result.weights > 0)), 1)
+        support = result.motion.n_inliers / used if result.motion.ok else 0.0
+        if result is _NO_MOTION:
+            support = 1.0  # a repeated frame is no new shot
+        changed = np.count_nonzero((score > 1.0) & ~young) / old
+        return (changed > self.scene_cut and support < self.cut_support) or changed > 0.8
 
     def __getstate__(self) -> dict:
         # Picklable and deep-copyable like the rest of the engine: the worker thread is not
@@ -541,7 +556,16 @@ class MovingCameraEngine(Engine):
 
 
 class CompensatedEngine(MovingCameraEngine):
-    """Classical front end: Shi-Tomasi corners + pyramidal Lucas-Kanade + forward-backward check."""
+    """Classical front end: Shi-Tomasi corners + pyramidal Lucas-Kanade + forward-backward check.
+
+    Parameters (keyword-only; with those of :class:`MovingCameraEngine`)
+    ----------
+    max_corners, corner_quality, min_distance : ``cv2.goodFeaturesToTrack``'s corners per frame
+        (``corner_quality`` and ``min_distance`` are set from Python only).
+    lk_window, lk_levels : ``cv2.calcOpticalFlowPyrLK``'s window side and pyramid levels.
+    fb_threshold : float
+        Tracks whose forward-backward error exceeds this (px) are dropped.
+    """
 
     name = "compensated"
 
@@ -802,7 +826,7 @@ _COMMON = {
     "violation_noise": Param(0.0, "... or this many robust standard deviations of the local "
                                   "vectors' disagreement, if more (0 = fixed threshold)", low=0),
     "min_area": Param(30, "blobs smaller than this (working-size pixels) are dropped", low=0),
-    "close": Param(9, "morphological closing size (0 = none)", low=0, high=99),
+    "close": Param(9, "morphological closing size (0 or 1 = none)", low=0, high=99),
     "fill_holes": Param(5000, "holes enclosed by a foreground blob, up to this many "
                               "working-size pixels, are filled (0 = none)", low=0),
     "threshold": Param(1.0, "foreground where the fused score exceeds this (lower = more "

@@ -19,7 +19,13 @@ The input is one of
 
 Outputs in ``report_dir`` (per sequence in ``report_dir/<sequence>/`` for a dataset root):
 ``<method>/binNNNNNN.png`` masks (or ``<method>.mkv``), ``side_by_side.mp4`` (input | one mask
-per method, labelled), and ``report.txt`` / ``report.csv`` / ``report.json`` at the top.
+per method, labelled), and ``report.txt`` / ``report.csv`` / ``report.json`` at the top;
+``report.json`` lists these outputs, and a later run with ``overwrite=True`` removes them (and
+nothing else) before writing its own.
+
+An input that ends before its ground truth does is scored up to its last frame (as
+``bgsub eval --last-frame <end>`` scores its masks); the report's notes and
+:attr:`ComparisonReport.warnings` say how many of the ground-truth frames asked for were scored.
 
 Example::
 
@@ -34,6 +40,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import glob
 import io
 import json
 import math
@@ -75,6 +82,11 @@ TIMING_NOTE = (
 
 #: Mask outputs: a folder of CDnet binNNNNNN.png, a lossless FFV1 video, or nothing.
 MASK_FORMATS = ("png", "mkv", "none")
+
+#: The report's files, at the top of the report folder.
+REPORT_FILES = ("report.txt", "report.csv", "report.json")
+#: The side-by-side video of each input (in its sequence's folder for a dataset root).
+SIDE_BY_SIDE = "side_by_side.mp4"
 
 # Side-by-side tiles are shrunk (never enlarged) to at most this height, and the whole picture
 # to at most this width. OpenCV's mp4v writer has no bitrate control (about 0.26 bytes per pixel
@@ -175,6 +187,13 @@ class ComparisonReport:
         The options that shaped the figures (frame range, skip_first, ROI.bmp use, ...).
     report_dir : str or None
         Where the outputs went.
+    outputs : list of str
+        What this run wrote in ``report_dir``, as paths relative to it (``report.txt``, ...,
+        ``mog2``, ``famA_one/side_by_side.mp4``); ``report.json`` lists them so that a later
+        run with ``overwrite`` removes exactly these.
+    warnings : list of str
+        What the caller should be told (``bgsub compare`` prints them on stderr), e.g. an input
+        that ends before its ground truth, so that fewer frames were scored than it holds.
     """
 
     input: str
@@ -184,6 +203,8 @@ class ComparisonReport:
     overall: List[ComparisonRow] = field(default_factory=list)
     settings: Dict[str, Any] = field(default_factory=dict)
     report_dir: Optional[str] = None
+    outputs: List[str] = field(default_factory=list)
+    warnings: List[str] = field(default_factory=list)
 
     @property
     def has_metrics(self) -> bool:
@@ -202,6 +223,8 @@ class ComparisonReport:
             "rows": [r.to_dict() for r in self.rows],
             "families": [r.to_dict() for r in self.families],
             "overall": [r.to_dict() for r in self.overall],
+            "warnings": list(self.warnings),
+            "outputs": list(self.outputs),
         }
 
     def to_csv(self) -> str:
@@ -276,6 +299,7 @@ class ComparisonReport:
     def write(self, folder: PathLike) -> None:
         """Write ``report.txt``, ``report.csv`` and ``report.json`` into ``folder``."""
         folder = Path(folder)
+        self.outputs = [*REPORT_FILES, *(p for p in self.outputs if p not in REPORT_FILES)]
         outputs = {"report.txt": self.to_text() + "\n", "report.csv": self.to_csv(),
                    "report.json": json.dumps(self.to_dict(), indent=2) + "\n"}
         for name, text in outputs.items():
@@ -467,6 +491,217 @@ def _check_report_dir(report_dir: PathLike, overwrite: bool) -> None:
 
 
 # --------------------------------------------------------------------------------------------
+# The outputs of this run, and those of a previous one (overwrite)
+# --------------------------------------------------------------------------------------------
+
+# Deepest output below the report folder: CATEGORY/NAME/<method> for a dataset root.
+_MAX_OUTPUT_DEPTH = 3
+
+
+class _Outputs:
+    """What a run writes in the report folder, and the one-time removal of a previous run's.
+
+    With ``overwrite``, :meth:`clear_previous` (called once the first input and its ground
+    truth are accepted, before anything is written) removes the outputs of the compare run that
+    filled the folder before, and nothing else: see :func:`remove_previous_outputs`.
+    """
+
+    def __init__(self, root: Optional[Path], *, overwrite: bool, methods: Sequence[str],
+                 protect: Sequence[Path]) -> None:
+        self.root = root
+        self.overwrite = overwrite
+        self.methods = list(methods)
+        self.protect = list(protect)
+        self.paths: List[str] = []
+        self._cleared = False
+
+    def clear_previous(self) -> None:
+        if self._cleared or self.root is None or not self.overwrite:
+            return
+        self._cleared = True
+        remove_previous_outputs(self.root, methods=self.methods, protect=self.protect)
+
+    def add(self, path: Path) -> None:
+        if self.root is not None:
+            rel = path.relative_to(self.root).as_posix()
+            if rel not in self.paths:
+                self.paths.append(rel)
+
+
+def _previous_report(root: Path) -> Tuple[Optional[List[str]], List[str]]:
+    """``(outputs, methods)`` listed by ``root/report.json``; outputs ``None`` when it lists
+    none (no report, an unreadable one, or one written before reports listed their outputs)."""
+    try:
+        data = json.loads((root / "report.json").read_text())
+    except (OSError, ValueError, UnicodeDecodeError):
+        return None, []
+    if not isinstance(data, dict):
+        return None, []
+    methods = data.get("methods")
+    methods = [m for m in methods if isinstance(m, str) and m] if isinstance(methods, list) \
+        else []
+    outputs = data.get("outputs")
+    if not isinstance(outputs, list) or not all(isinstance(p, str) for p in outputs):
+        return None, methods
+    return list(outputs), methods
+
+
+def _names_an_output(rel: str, methods: Sequence[str]) -> bool:
+    """Whether ``rel`` (relative to the report folder) is a path compare writes: a report file
+    at the top, or ``[SEQUENCE/]side_by_side.mp4``, ``<method>`` or ``<method>.mkv`` at most
+    :data:`_MAX_OUTPUT_DEPTH` levels down."""
+    parts = rel.split("/")
+    if not rel or rel.startswith("/") or "\\" in rel or len(parts) > _MAX_OUTPUT_DEPTH \
+            or any(part in ("", ".", "..") for part in parts):
+        return False
+    name = parts[-1]
+    if name in REPORT_FILES:
+        return len(parts) == 1
+    return name == SIDE_BY_SIDE or name in methods or \
+        (name.endswith(".mkv") and name[:-len(".mkv")] in methods)
+
+
+def _outputs_by_name(root: Path, methods: Sequence[str]) -> List[str]:
+    """The paths compare's naming rules give, for a folder whose report does not list them:
+    the report files, and ``side_by_side.mp4``, ``<method>/`` and ``<method>.mkv`` at the top
+    (a single input) or in folders one or two levels down (``NAME/``, ``CATEGORY/NAME/`` of a
+    dataset root). Folders named after a method are mask folders, not sequences."""
+    found = list(REPORT_FILES)
+    per_input = [SIDE_BY_SIDE, *methods, *(f"{m}.mkv" for m in methods)]
+    level = [""]
+    for depth in range(_MAX_OUTPUT_DEPTH):
+        found += [f"{prefix}{name}" for prefix in level for name in per_input]
+        if depth == _MAX_OUTPUT_DEPTH - 1:
+            break
+        below = []
+        for prefix in level:
+            try:
+                children = sorted((root / prefix).iterdir())
+            except OSError:
+                continue
+            below += [f"{prefix}{child.name}/" for child in children
+                      if child.is_dir() and not child.is_symlink()
+                      and child.name not in methods and not child.name.startswith(".")]
+        level = below
+    return found
+
+
+def remove_previous_outputs(root: PathLike, *, methods: Sequence[str] = (),
+                            protect: Sequence[PathLike] = ()) -> List[str]:
+    """Remove what an earlier compare run wrote in the report folder ``root``, nothing else.
+
+    The outputs are those the earlier run's ``report.json`` lists (``"outputs"``); without
+    that list (no report, e.g. after Ctrl-C, or one from an older version) compare's naming
+    rules find them (:func:`_outputs_by_name`), for the methods the report names, the
+    registered engines and ``methods``. Of a mask folder only its ``binNNNNNN.png`` files go
+    (and the folder, once empty); of a video or report file, the file and the temporary file
+    an interrupted writer may have left. Folders emptied this way are removed up to ``root``.
+    Other files stay. Symbolic links are never followed nor removed.
+
+    Parameters
+    ----------
+    root : path
+        The report folder.
+    methods : sequence of str
+        Method names besides the registered engines (those of the run about to start).
+    protect : sequence of path
+        What the run about to start reads (its input, its ground truth): refused when an
+        output to remove is, or holds, one of them.
+
+    Returns
+    -------
+    list of str
+        The removed paths, relative to ``root``.
+
+    Raises
+    ------
+    OutputError
+        A protected path would be removed, or a file cannot be.
+    """
+    from bgsub.sinks import _MASK_NAME, _PARTIAL_MASK_NAME
+
+    root = Path(root)
+    listed, report_methods = _previous_report(root)
+    names = list(dict.fromkeys([*report_methods, *(spec.name for spec in available_engines()),
+                                *methods]))
+    if listed is None:
+        candidates = _outputs_by_name(root, names)
+    else:
+        candidates = [rel for rel in listed if _names_an_output(rel, names)]
+
+    # What goes, gathered before anything is removed so a protected input stops it all.
+    files: List[Path] = []
+    folders: List[Path] = []  # mask folders, removed once empty
+    for rel in dict.fromkeys(candidates):
+        path = root / rel
+        name = path.name
+        if path.is_symlink():
+            continue
+        if name in names and path.is_dir():  # a mask folder
+            try:
+                entries = sorted(path.iterdir())
+            except OSError as err:
+                raise OutputError(f"cannot read {path}: {err.strerror}") from None
+            files += [entry for entry in entries if not entry.is_symlink() and entry.is_file()
+                      and (_MASK_NAME.fullmatch(entry.name)
+                           or _PARTIAL_MASK_NAME.fullmatch(entry.name))]
+            folders.append(path)
+        elif name in REPORT_FILES or name == SIDE_BY_SIDE \
+                or (name.endswith(".mkv") and name[:-len(".mkv")] in names):
+            # The file, and the one an interrupted video writer leaves (sinks._partial_path).
+            partial = path.with_name(f".{path.stem}.partial{path.suffix}")
+            files += [p for p in (path, partial) if p.is_file() and not p.is_symlink()]
+    guarded = {Path(p).resolve() for p in protect}
+    for path in [*files, *folders]:
+        resolved = path.resolve()
+        if resolved in guarded or any(parent in guarded for parent in resolved.parents):
+            raise OutputError(f"{path} was written by an earlier bgsub compare but is part of "
+                              "this run's input: --overwrite will not remove it; write the "
+                              "report elsewhere")
+
+    removed: List[str] = []
+    emptied = set()
+    for path in files:
+        try:
+            path.unlink()
+        except FileNotFoundError:
+            continue
+        except OSError as err:
+            raise OutputError(f"cannot remove {path} (left by an earlier bgsub compare): "
+                              f"{err.strerror}") from None
+        removed.append(path.relative_to(root).as_posix())
+        emptied.add(path.parent)
+    emptied.update(folders)
+    # Deepest first, so a sequence folder is looked at after its mask folders.
+    for folder in sorted(emptied, key=lambda p: len(p.parts), reverse=True):
+        while folder != root and root in folder.parents:
+            try:
+                folder.rmdir()  # only when empty
+            except OSError:
+                break
+            removed.append(folder.relative_to(root).as_posix() + "/")
+            folder = folder.parent
+    return removed
+
+
+def _read_paths(jobs: Sequence[_Job]) -> List[Path]:
+    """What the jobs read: their frames (a sequence's input/, a glob's matches) and their
+    ground truth's files; outputs of an earlier run found among them are not removed."""
+    paths: List[Path] = []
+    for job in jobs:
+        frames = Path(job.frames)
+        if (frames / "input").is_dir():
+            paths.append(frames / "input")
+        elif frames.exists():
+            paths.append(frames)
+        elif _has_glob(job.frames):
+            paths += [Path(p) for p in glob.glob(job.frames)]
+        if job.gt is not None:
+            paths += [job.gt / "groundtruth", job.gt / "temporalROI.txt", job.gt / "ROI.bmp"]
+    return paths
+
+
+# --------------------------------------------------------------------------------------------
 # Running one input
 # --------------------------------------------------------------------------------------------
 
@@ -478,44 +713,74 @@ class _Scoring:
     gt: GroundTruth
     numbers: List[int]
     resize: Optional[Tuple[int, int]]  # (w, h) to bring masks to the ground truth's size
+    # What this run would score were the input long enough (frame range, --max-frames and
+    # skip_first applied, but not the input's end): ``numbers`` falls short of it when the
+    # input ends before its ground truth does.
+    requested: List[int] = field(default_factory=list)
+
+
+def _frame_span(numbers: Sequence[int]) -> str:
+    return f"{numbers[0]}-{numbers[-1]}" if len(numbers) > 1 else f"{numbers[0]}"
+
+
+def _short_input_note(scored: int, requested: Sequence[int], input_end: int) -> str:
+    """``"scored 16 of 276 ground-truth frames (25-300): the input ends at frame 40"``."""
+    return (f"scored {scored} of {len(requested)} ground-truth frames ({_frame_span(requested)}): "
+            f"the input ends at frame {input_end}")
 
 
 def _scoring(job: _Job, info: VideoInfo, *, start: int, stop: Optional[int], step: int,
              skip_first: bool, ignore_roi_bmp: bool, resized: bool,
-             tolerate_empty: bool) -> Tuple[Optional[_Scoring], List[str]]:
-    """Which frames of ``job`` get scored; ``(None, notes)`` when none can be."""
+             tolerate_empty: bool) -> Tuple[Optional[_Scoring], List[str], List[str]]:
+    """Which frames of ``job`` get scored: ``(scoring, notes, warnings)``, ``scoring`` None when
+    none can be."""
     if job.gt is None:
-        return None, []
+        return None, [], []
     gt = open_ground_truth(job.gt, ignore_roi_bmp=ignore_roi_bmp)
     if (info.width, info.height) != (gt.width, gt.height) and not resized:
         raise InputError(f"frames of {job.frames} are {info.width}x{info.height} but the ground "
                          f"truth in {job.gt} is {gt.width}x{gt.height}")
-    # Frame numbers (1-based) this run processes; known exactly when the input's length is.
-    last = max(gt.frames)
+    # Frame numbers (1-based) this run asks for, then those it processes: the input's end,
+    # when known up front, may cut the request short.
+    limit = max(gt.frames)
+    if stop is not None:
+        limit = min(limit, stop)
+    asked = range(start + 1, limit + 1, step)
+    last = limit
     if info.frame_count is not None:
         last = min(last, start + (info.frame_count - 1) * step + 1)
-    if stop is not None:
-        last = min(last, stop)
     processed = range(start + 1, last + 1, step)
     if skip_first:
         # The first frame the engines see has no history; a frame later in the input (say the
         # start of CDnet traffic's temporal ROI, frame 900) has plenty and is scored.
-        processed = processed[1:]
+        asked, processed = asked[1:], processed[1:]
     try:
-        numbers = gt.select_frames(frames=processed)
+        requested = gt.select_frames(frames=asked)
     except InputError as err:
         if not tolerate_empty:
             raise
-        return None, [f"not scored: {err}"]
+        return None, [f"not scored: {err}"], []
+    try:
+        numbers = gt.select_frames(frames=processed)
+    except InputError:
+        # The input ends before the first frame to score, e.g. before a temporal ROI opens.
+        message = (f"{job.frames} ends at frame {last}, before the first ground-truth frame to "
+                   f"score ({requested[0]}; {len(requested)} frames, "
+                   f"{_frame_span(requested)}, in {job.gt})")
+        if not tolerate_empty:
+            raise InputError(message) from None
+        return None, [f"not scored: {message}"], [f"{job.name}: not scored: {message}"]
     resize = (gt.width, gt.height) if (info.width, info.height) != (gt.width, gt.height) \
         else None
-    return _Scoring(gt, numbers, resize), list(gt.notes)
+    return _Scoring(gt, numbers, resize, requested), list(gt.notes), []
 
 
 def _run_job(job: _Job, methods: Sequence[str], params: Mapping[str, Mapping[str, Any]], *,
              source_options: Dict[str, Any], max_frames: Optional[int], skip_first: bool,
              ignore_roi_bmp: bool, masks: str, video: bool, tile_height: int, overwrite: bool,
-             quiet: bool, tolerate_empty: bool) -> List[ComparisonRow]:
+             quiet: bool, tolerate_empty: bool, written: "_Outputs"
+             ) -> Tuple[List[ComparisonRow], List[str]]:
+    """Run ``methods`` on one input; returns its rows and the warnings for stderr."""
     options = dict(source_options)
     start, step = options["start"], options["step"]
     if max_frames is not None:
@@ -525,9 +790,9 @@ def _run_job(job: _Job, methods: Sequence[str], params: Mapping[str, Mapping[str
 
     with open_source(job.frames, **options) as source:
         info = source.info
-        scoring, notes = _scoring(job, info, start=start, stop=options["stop"], step=step,
-                                  skip_first=skip_first, ignore_roi_bmp=ignore_roi_bmp,
-                                  resized=resized, tolerate_empty=tolerate_empty)
+        scoring, notes, warnings = _scoring(
+            job, info, start=start, stop=options["stop"], step=step, skip_first=skip_first,
+            ignore_roi_bmp=ignore_roi_bmp, resized=resized, tolerate_empty=tolerate_empty)
         to_score = set(scoring.numbers) if scoring else set()
         mask_size = scoring.resize if scoring and scoring.resize else (info.width, info.height)
         engines = {m: create_engine(m, **params.get(m, {})) for m in methods}
@@ -537,6 +802,8 @@ def _run_job(job: _Job, methods: Sequence[str], params: Mapping[str, Mapping[str
         scored: List[int] = []
         n_frames = 0
 
+        # The input and its ground truth are accepted: a previous run's results may go.
+        written.clear_previous()
         if job.out is not None and (video or masks != "none"):
             # A dataset root's per-sequence folder (video sinks need their folder to exist).
             try:
@@ -545,13 +812,14 @@ def _run_job(job: _Job, methods: Sequence[str], params: Mapping[str, Mapping[str
                 raise OutputError(f"cannot create {job.out}: {err.strerror}") from None
         with contextlib.ExitStack() as stack:
             sinks = _open_mask_sinks(stack, job.out, methods, masks, size=mask_size,
-                                     fps=info.fps, overwrite=overwrite)
+                                     fps=info.fps, overwrite=overwrite, written=written)
             layout = TileLayout.for_frames(info.width, info.height, ["input", *methods],
                                            tile_height=tile_height)
             picture = None
             if video and job.out is not None:
+                written.add(job.out / SIDE_BY_SIDE)
                 picture = stack.enter_context(VideoSink(
-                    job.out / "side_by_side.mp4", fps=info.fps, width=layout.width,
+                    job.out / SIDE_BY_SIDE, fps=info.fps, width=layout.width,
                     height=layout.height, overwrite=overwrite))
             frames = progress(source, total=info.frame_count, desc=job.name, quiet=quiet)
             for index, frame in frames:
@@ -588,31 +856,31 @@ def _run_job(job: _Job, methods: Sequence[str], params: Mapping[str, Mapping[str
     if n_frames == 0:
         raise InputError(f"{job.frames}: no frames in the requested range")
 
-    missing: List[int] = []
     if scoring is not None:
-        missing = sorted(to_score - set(scored))
-        if missing:
-            # The input ended before its ground truth: those frames count as all background
-            # (their objects become false negatives), as `bgsub eval --allow-missing` does.
-            notes.append(f"{len(missing)} ground-truth frames after the end of the input "
-                         "counted as background")
-            for number in missing:
-                labels = scoring.gt.labels(number)
-                empty = np.zeros_like(labels)
-                for method in methods:
-                    counts[method] += count_frame(empty, labels, scoring.gt.roi)
-        notes.append(f"scored frames {scoring.numbers[0]}-{scoring.numbers[-1]} "
-                     f"({len(scoring.numbers)} frames)")
+        # `number` is now the last frame read. Frames the source promised but never delivered
+        # (a video that states the wrong length, or none) are not scored, like those past an
+        # end known up front: the figures are those of `bgsub eval --last-frame <end>` on the
+        # masks written here.
+        if not scored:
+            notes.append(f"not scored: {job.frames} ends at frame {number}, before the first "
+                         f"ground-truth frame to score ({scoring.requested[0]})")
+            warnings.append(f"{job.name}: {notes[-1]}")
+            scoring = None
+        else:
+            notes.append(f"scored frames {_frame_span(scored)} ({len(scored)} frames)")
+            if len(scored) < len(scoring.requested):
+                notes.append(_short_input_note(len(scored), scoring.requested, number))
+                warnings.append(f"{job.name}: {notes[-1]}")
     rows = []
     for method in methods:
         metrics = counts[method].metrics() if scoring is not None else None
         rows.append(ComparisonRow(
             level="sequence", name=job.name, family=job.family, method=method,
             frames=n_frames, seconds=seconds[method],
-            eval_frames=len(scoring.numbers) if scoring else 0,
+            eval_frames=len(scored) if scoring else 0,
             counts=counts[method] if scoring else None, metrics=metrics,
             not_ok=not_ok[method], notes=tuple(notes)))
-    return rows
+    return rows, warnings
 
 
 def _checked_mask(mask: Any, method: str, info: VideoInfo) -> np.ndarray:
@@ -625,13 +893,14 @@ def _checked_mask(mask: Any, method: str, info: VideoInfo) -> np.ndarray:
 
 
 def _open_mask_sinks(stack: contextlib.ExitStack, out: Optional[Path], methods: Sequence[str],
-                     masks: str, *, size: Tuple[int, int], fps: float, overwrite: bool
-                     ) -> Dict[str, Any]:
+                     masks: str, *, size: Tuple[int, int], fps: float, overwrite: bool,
+                     written: "_Outputs") -> Dict[str, Any]:
     if out is None or masks == "none":
         return {}
     sinks = {}
     for method in methods:
         target = out / (method if masks == "png" else f"{method}.mkv")
+        written.add(target)
         sinks[method] = stack.enter_context(open_mask_sink(
             target, width=size[0], height=size[1], fps=fps, overwrite=overwrite))
     return sinks
@@ -742,13 +1011,19 @@ def compare_methods(
     tile_height : int
         Largest height of one tile of the side-by-side video (frames are never enlarged).
     overwrite : bool
-        Replace earlier results in ``report_dir``.
+        Replace earlier results in ``report_dir``: once the (first) input and its ground truth
+        are accepted, the outputs of the compare run that wrote there before are removed (those
+        its ``report.json`` lists, else those compare's naming rules give; see
+        :func:`remove_previous_outputs`), so the folder holds this run's results only; other
+        files stay.
     quiet : bool
         No progress bars (they are also off when stderr is not a terminal).
 
     Returns
     -------
     ComparisonReport
+        Its ``warnings`` say when an input ends before its ground truth does (frames the run
+        asked for that were never scored), also stated in the report's notes.
 
     Raises
     ------
@@ -797,17 +1072,25 @@ def compare_methods(
             "params": {m: dict(v) for m, v in params.items()},
         },
     )
+    # With overwrite, the previous run's outputs go once the first input is accepted (so a
+    # mistyped --gt or a frame-size mismatch leaves them in place), and only they.
+    written = _Outputs(out, overwrite=overwrite, methods=names, protect=_read_paths(jobs))
     outer = progress(jobs, total=len(jobs), desc="sequences", quiet=quiet or not is_dataset,
                      unit="seq")
     for job in outer:
-        report.rows.extend(_run_job(
+        rows, warnings = _run_job(
             job, names, params, source_options=source_options, max_frames=max_frames,
             skip_first=skip_first, ignore_roi_bmp=ignore_roi, masks=masks, video=video,
-            tile_height=tile_height, overwrite=overwrite, quiet=quiet, tolerate_empty=is_dataset))
+            tile_height=tile_height, overwrite=overwrite, quiet=quiet, tolerate_empty=is_dataset,
+            written=written)
+        report.rows.extend(rows)
+        report.warnings.extend(warnings)
     if is_dataset:
         report.families, report.overall = _means(report.rows, names)
     if plan_notes:
         report.settings["skipped"] = plan_notes
     if out is not None:
+        written.clear_previous()
+        report.outputs = list(written.paths)
         report.write(out)
     return report

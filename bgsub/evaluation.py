@@ -44,7 +44,9 @@ Predictions
     the sequence at ``GT_ROOT/REL`` (``REL`` = its path relative to the root, e.g.
     ``cameraJitter/traffic``; ``NAME`` = its folder name) is the first that exists of
     ``PRED_ROOT/REL/``, ``PRED_ROOT/NAME/``, ``PRED_ROOT/REL.<ext>``, ``PRED_ROOT/NAME.<ext>``
-    with ``<ext>`` a video extension (:data:`VIDEO_EXTENSIONS`).
+    with ``<ext>`` a video extension (:data:`VIDEO_EXTENSIONS`). A `bgsub compare` report holds
+    one mask set per method (``METHOD/`` or ``METHOD.mkv``, inside ``REL/`` for a dataset):
+    ``method`` (``bgsub eval --method``) picks one.
 
 Prediction size
     ``bgsub run --width/--scale`` writes masks at the processed size. A prediction whose size is
@@ -377,6 +379,9 @@ class GroundTruth:
         skip_first : bool
             Leave out frame 1, where a background model run from the start has no history.
         """
+        if first_frame is not None and last_frame is not None and first_frame > last_frame:
+            raise InputError(f"first_frame (--first-frame {first_frame}) is after last_frame "
+                             f"(--last-frame {last_frame}): no frame lies between them")
         numbers = list(self.frames)
         if self.temporal_roi is not None:
             lo, hi = self.temporal_roi
@@ -507,15 +512,16 @@ class VideoFrames:
     stop: Optional[int] = None
 
     def __post_init__(self) -> None:
-        # The messages name the CLI flags: this is what `bgsub eval --start/--step/--stop` build.
+        # Each message names the field and the `bgsub eval` flag that sets it: both kinds of
+        # caller (Python, the CLI) read these.
         if not isinstance(self.start, (int, np.integer)) or self.start < 0:
-            raise InputError(f"--start takes a 0-based frame index >= 0 (as in bgsub run), "
-                             f"not {self.start!r}")
+            raise InputError(f"start (--start) takes a 0-based frame index >= 0, as in bgsub "
+                             f"run, not {self.start!r}")
         if not isinstance(self.step, (int, np.integer)) or self.step < 1:
-            raise InputError(f"--step must be at least 1, not {self.step!r}")
+            raise InputError(f"step (--step) must be at least 1, not {self.step!r}")
         if self.stop is not None and (not isinstance(self.stop, (int, np.integer))
                                       or self.stop <= self.start):
-            raise InputError(f"--stop ({self.stop!r}) must be after --start ({self.start})")
+            raise InputError(f"stop (--stop, {self.stop!r}) must be after start ({self.start})")
 
     @property
     def is_default(self) -> bool:
@@ -559,12 +565,46 @@ class _PredictionReader(ABC):
                 f"{self.label} (first: {names}{more})")
 
 
+def _mask_sets(folder: Path) -> List[str]:
+    """Names of the mask sets inside ``folder``, as `bgsub compare` writes one per method: mask
+    videos (``grbm.mkv``) and subfolders holding ``binNNNNNN.png`` masks (``grbm/``)."""
+    found = []
+    for entry in sorted(os.scandir(folder), key=lambda e: e.name):
+        if entry.is_file() and os.path.splitext(entry.name)[1].lower() in VIDEO_EXTENSIONS:
+            found.append(entry.name)
+        elif entry.is_dir():
+            try:
+                names = os.listdir(entry.path)
+            except OSError:  # unreadable: not something to point at
+                continue
+            if any(_BIN_NAME.match(name) for name in names):
+                found.append(entry.name + "/")
+    return found
+
+
+def _no_masks_message(folder: Path, gt: Optional[Path]) -> str:
+    """Why ``folder`` is no prediction, saying what it holds instead."""
+    text = f"no binNNNNNN.png masks in {folder}"
+    sets = _mask_sets(folder)
+    if not sets:
+        count = sum(1 for _ in os.scandir(folder))
+        return text + (" (the folder is empty)" if not count else
+                       f" (none of its {count} files and folders is one)")
+    listed = ", ".join(sets[:_MAX_LISTED]) + (", ..." if len(sets) > _MAX_LISTED else "")
+    example = folder / sets[0]
+    name = sets[0].rstrip("/")
+    method = os.path.splitext(name)[0] if not sets[0].endswith("/") else name
+    return (f"{text}: it holds the mask sets {listed} (`bgsub compare` writes one per method); "
+            f"score one with method={method!r} (--method {method}), or give it, e.g. "
+            f"`bgsub eval {example} {gt or 'GROUNDTRUTH'}`")
+
+
 class _FolderReader(_PredictionReader):
-    def __init__(self, folder: Path) -> None:
+    def __init__(self, folder: Path, gt: Optional[Path] = None) -> None:
         self.label = str(folder)
         self.files = _bin_frames(folder)
         if not self.files:
-            raise InputError(f"no binNNNNNN.png masks in {folder}")
+            raise InputError(_no_masks_message(folder, gt))
 
     def read(self, numbers: Sequence[int]) -> Iterator[Tuple[int, np.ndarray]]:
         for number in numbers:
@@ -578,6 +618,17 @@ class _FolderReader(_PredictionReader):
 
     def frame_name(self, number: int) -> str:
         return f"bin{number:06d}.png"
+
+    def missing_message(self, missing: Sequence[int], total: int) -> str:
+        text = super().missing_message(missing, total)
+        if len(missing) == total:  # not one wanted number: the masks are numbered otherwise
+            low, high = min(self.files), max(self.files)
+            text += f"; the folder's masks are numbered {low}-{high}"
+            if low == 1:
+                text += (" (`bgsub run` numbers masks by position in its input: run on part of "
+                         "a folder or glob, they start at 1 whatever the frames' names; run it "
+                         "on the whole folder with --start/--stop to keep the frame numbers)")
+        return text
 
 
 class _VideoReader(_PredictionReader):
@@ -627,15 +678,15 @@ class _IterableReader(_PredictionReader):
                 yield int(number), _to_gray(_as_uint8_mask(mask, number), f"frame {number}")
 
 
-def _prediction_reader(pred: Optional[Prediction],
-                       video: VideoFrames = VideoFrames()) -> _PredictionReader:
+def _prediction_reader(pred: Optional[Prediction], video: VideoFrames = VideoFrames(),
+                       gt: Optional[Path] = None) -> _PredictionReader:
     if pred is None:  # a dataset sequence without any prediction (allow_missing)
         return _IterableReader((), label="(no prediction)")
     if isinstance(pred, (str, os.PathLike)):
         path = Path(pred)
         if path.is_dir():
             _refuse_video_frames(video, f"{path} is a folder of binNNNNNN.png masks")
-            return _FolderReader(path)
+            return _FolderReader(path, gt)
         if path.is_file():
             return _VideoReader(path, video)
         raise InputError(f"prediction {path} does not exist")
@@ -824,7 +875,7 @@ def evaluate_sequence(
     gt = open_ground_truth(gt_dir, ignore_roi_bmp=ignore_roi_bmp)
     numbers = gt.select_frames(first_frame=first_frame, last_frame=last_frame, frames=frames,
                                skip_first=skip_first)
-    reader = _prediction_reader(pred, video)
+    reader = _prediction_reader(pred, video, gt.path)
     # A dataset sequence without any prediction (pred None, allow_missing) counts the frames the
     # videos of the others hold, so the frame totals of the two agree.
     video_range = not video.is_default and (pred is None or isinstance(reader, _VideoReader))
@@ -927,13 +978,21 @@ def find_sequences(gt_root: PathLike) -> List[Path]:
     return sorted(found, key=lambda p: p.relative_to(root).as_posix())
 
 
-def find_prediction(pred_root: PathLike, rel_path: PathLike) -> Optional[Path]:
-    """The prediction of the sequence ``rel_path`` in ``pred_root`` (see module doc), or None."""
+def find_prediction(pred_root: PathLike, rel_path: PathLike,
+                    method: Optional[str] = None) -> Optional[Path]:
+    """The prediction of the sequence ``rel_path`` in ``pred_root`` (see module doc), or None.
+
+    With ``method``, the masks of that method in a `bgsub compare` report: ``METHOD/`` or
+    ``METHOD.<ext>`` inside the sequence's folder ``REL/`` or ``NAME/``.
+    """
     root, rel = Path(pred_root), Path(rel_path)
-    for candidate in (root / rel, root / rel.name):
+    bases = [root / rel, root / rel.name]
+    if method is not None:
+        bases = [base / method for base in bases]
+    for candidate in bases:
         if candidate.is_dir():
             return candidate
-    for base in (root / rel, root / rel.name):
+    for base in bases:
         for ext in VIDEO_EXTENSIONS:
             candidate = base.with_name(base.name + ext)
             if candidate.is_file():
@@ -946,6 +1005,7 @@ def evaluate_dataset(
     gt_root: PathLike,
     *,
     allow_missing: bool = False,
+    method: Optional[str] = None,
     **options: Any,
 ) -> DatasetResult:
     """Evaluate every sequence under ``gt_root`` against its prediction in ``pred_root``.
@@ -959,6 +1019,8 @@ def evaluate_dataset(
         Dataset root (sequences at any depth).
     allow_missing : bool
         Count missing frames, and sequences without any prediction, as all background.
+    method : str, optional
+        Score this method's masks of a `bgsub compare` report (see :func:`find_prediction`).
     **options
         Passed to :func:`evaluate_sequence` (``ignore_roi_bmp``, ``skip_first``, ...);
         ``video_start``/``video_step``/``video_stop`` apply to every sequence and need every
@@ -976,11 +1038,12 @@ def evaluate_dataset(
         raise InputError(f"predictions {pred_root} must be a folder when the ground truth is a "
                          "dataset of several sequences")
     rels = [seq.relative_to(root) for seq in sequences]
-    preds = {rel: find_prediction(pred_root, rel) for rel in rels}
+    preds = {rel: find_prediction(pred_root, rel, method) for rel in rels}
     absent = [rel.as_posix() for rel, p in preds.items() if p is None]
     if absent and not allow_missing:
         listed = ", ".join(absent[:_MAX_LISTED]) + (", ..." if len(absent) > _MAX_LISTED else "")
-        raise InputError(f"no prediction in {pred_root} for {len(absent)} of {len(rels)} "
+        of = f" of method {method!r}" if method is not None else ""
+        raise InputError(f"no prediction{of} in {pred_root} for {len(absent)} of {len(rels)} "
                          f"sequences ({listed}); use --allow-missing to count them as background")
     video = VideoFrames(options.get("video_start", 0), options.get("video_step", 1),
                         options.get("video_stop"))
@@ -997,19 +1060,46 @@ def evaluate_dataset(
     return DatasetResult.from_sequences(results)
 
 
-def evaluate(pred: PathLike, gt: PathLike, **options: Any) -> DatasetResult:
+def evaluate(pred: PathLike, gt: PathLike, *, method: Optional[str] = None,
+             **options: Any) -> DatasetResult:
     """Evaluate a sequence or a dataset (whichever ``gt`` is) -> :class:`DatasetResult`.
 
     A single sequence gives a result with one sequence, one category, and overall = it.
+    ``method`` picks one method's masks in a `bgsub compare` report folder ``pred``
+    (``METHOD/`` or ``METHOD.mkv``, per sequence for a dataset).
     """
     if isinstance(pred, (str, os.PathLike)):  # not masks handed over from Python
         given_path(pred, what="prediction", hint="a mask folder or a mask video")
     given_path(gt, what="ground truth", hint="a CDnet sequence folder or a dataset root")
+    if method is not None:
+        _check_method_name(method, pred)
     if not Path(gt).exists():
         raise InputError(f"ground truth {gt} does not exist")
     if is_sequence(gt):
+        if method is not None:
+            found = find_prediction(pred, method)
+            if found is None:
+                raise InputError(f"no masks of method {method!r} in {pred} (neither "
+                                 f"{method}/ nor {method}.mkv or another video)")
+            pred = found
         return DatasetResult.from_sequences([evaluate_sequence(pred, gt, **options)])
-    return evaluate_dataset(pred, gt, **options)
+    return evaluate_dataset(pred, gt, method=method, **options)
+
+
+def _check_method_name(method: str, pred: Any) -> None:
+    """``method`` names a mask set in a `bgsub compare` report folder ``pred``."""
+    if not method.strip():
+        raise InputError("method (--method) is empty; give a method's name, e.g. grbm")
+    if "/" in method or "\\" in method or method in (".", ".."):
+        raise InputError(f"method (--method) takes a method's name, e.g. grbm, not a path: "
+                         f"{method!r}")
+    if not isinstance(pred, (str, os.PathLike)):
+        raise InputError("method (--method) picks one method's masks in a `bgsub compare` "
+                         "report folder, not among masks from Python")
+    if not Path(pred).is_dir():
+        what = "is not a folder" if Path(pred).exists() else "does not exist"
+        raise InputError(f"prediction {pred} {what}; method (--method) picks one method's "
+                         "masks in a `bgsub compare` report folder")
 
 
 # --------------------------------------------------------------------------------------------

@@ -44,7 +44,8 @@ import cv2  # noqa: E402 (after the environment variable above)
 
 from bgsub.errors import InputError, given_path  # noqa: E402
 
-#: Side of the square patches the motion model reads; smaller frames cannot be processed.
+#: Smallest width and height of the frames bgsub processes (the side of the motion model's
+#: patches; the same floor for every engine, so inputs that one accepts all others do).
 MIN_FRAME_SIZE = 13
 
 #: Frame rate reported for image folders and videos that do not state one.
@@ -71,7 +72,8 @@ class VideoInfo:
         Size of the yielded frames, after resizing.
     fps : float
         Frame rate of the yielded stream: the input's rate divided by ``step``, so a video written
-        from it plays at the input's speed. :data:`DEFAULT_FPS` for image folders.
+        from it plays at the input's speed. :data:`DEFAULT_FPS` (divided by ``step``) for image
+        folders.
     fps_is_default : bool
         True when the input states no frame rate and :data:`DEFAULT_FPS` was assumed.
     frame_count : int or None
@@ -147,6 +149,9 @@ class _VideoBackend:
         self.fps = DEFAULT_FPS if self.fps_is_default else float(fps)
         # The container's count; some containers only estimate it, so iteration never relies on it.
         self.total: Optional[int] = count if count > 0 else None
+        # Frames decoded (from the first) when the last pass's decoder gave up before its stop;
+        # None when it reached its stop or was not run to the end.
+        self.decoding_ended_at: Optional[int] = None
 
     def _open(self) -> "cv2.VideoCapture":
         with quiet_opencv():
@@ -163,6 +168,7 @@ class _VideoBackend:
 
     def frames(self, start: int, stop: Optional[int], step: int
                ) -> Iterator[Tuple[int, np.ndarray]]:
+        self.decoding_ended_at = None
         capture = self._open()
         try:
             # Skip by decoding rather than seeking with CAP_PROP_POS_FRAMES: seeking lands on a
@@ -177,10 +183,12 @@ class _VideoBackend:
             while stop is None or index < stop:
                 ok, frame = capture.read()
                 if not ok or frame is None:
+                    self.decoding_ended_at = index
                     return
                 yield index, frame
-                for _ in range(step - 1):
+                for skipped in range(step - 1):
                     if not capture.grab():
+                        self.decoding_ended_at = index + 1 + skipped
                         return
                 index += step
         finally:
@@ -198,6 +206,9 @@ class _ImageListBackend:
         self.kind = kind
         self.total: Optional[int] = len(files)
         self.first_shape: Tuple[int, ...] = ()
+        # The folders the files are listed from, resolved (a glob may span several).
+        self.folders: Tuple[Path, ...] = tuple(sorted({parent.resolve() for parent in
+                                                       {path.parent for path in files}}))
 
     def read(self, index: int) -> np.ndarray:
         path = self.files[index]
@@ -308,6 +319,29 @@ class FrameSource:
 
     def __repr__(self) -> str:
         return f"FrameSource({self.info})"
+
+    @property
+    def folders(self) -> Tuple[Path, ...]:
+        """The folders the frames are listed from, resolved: an image folder (a CDnet sequence's
+        ``input/``) or every folder a glob's matches lie in; ``()`` for a video. Images written
+        there would be read as frames the next time."""
+        return getattr(self._backend, "folders", ())
+
+    def truncation(self) -> Optional[str]:
+        """A one-line note when the last complete pass over a video ended because decoding
+        stopped well short of the frame count its container declares (a truncated or damaged
+        file), else ``None``. A pass that reached its ``stop`` is not short; a few frames of
+        difference are allowed, since some containers only estimate their length."""
+        decoded = getattr(self._backend, "decoding_ended_at", None)
+        declared = self._backend.total
+        if decoded is None or declared is None:
+            return None
+        stop = self._range[1]
+        expected = declared if stop is None else min(stop, declared)
+        if expected - decoded <= max(2, declared // 50):
+            return None
+        return (f"{self.info.path} ended after {decoded} of the {declared} frames its header "
+                "declares (truncated or damaged?)")
 
     def _frames(self) -> Iterator[Tuple[int, np.ndarray]]:
         size = (self.info.width, self.info.height)
@@ -422,8 +456,8 @@ def open_source(path: PathLike, *, start: int = 0, stop: Optional[int] = None, s
         resized = f" after resizing from {raw_w}x{raw_h}" if (out_w, out_h) != (raw_w, raw_h) \
             else ""
         raise InputError(
-            f"{text}: frames are {out_w}x{out_h}{resized}, smaller than the "
-            f"{MIN_FRAME_SIZE}x{MIN_FRAME_SIZE} patches bgsub reads"
+            f"{text}: frames are {out_w}x{out_h}{resized}, smaller than "
+            f"{MIN_FRAME_SIZE}x{MIN_FRAME_SIZE}, the smallest frames bgsub processes"
         )
 
     count = None

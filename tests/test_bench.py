@@ -96,3 +96,9 @@ def test_api_rejects_params_for_other_methods() -> None:
     with pytest.raises(InputError):
         bench_methods(methods=["framediff"], params={"mog2": {"history": 10}}, frames=1,
                       repeats=1, width=64, height=48)
+
+
+@pytest.mark.parametrize("value", ["", " , "])
+def test_cli_empty_methods_is_refused_not_all(bgsub_error, value) -> None:
+    # As in `bgsub compare`: an empty list is a mistake, not "every engine".
+    assert "--methods is empty" in bgsub_error(["bench", "--methods", value, "--frames", "1"])

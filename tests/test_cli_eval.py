@@ -220,3 +220,24 @@ def test_methods_unknown_name(capsys):
 def test_methods_empty_name_is_unknown_not_all(bgsub_error):
     err = bgsub_error(["methods", ""])
     assert "unknown method ''" in err and "available:" in err
+
+
+def test_eval_first_frame_after_last_frame(case, bgsub_error):
+    pred, seq = case
+    err = bgsub_error(["eval", pred, seq, "--first-frame", "30", "--last-frame", "20"])
+    assert "--first-frame 30) is after last_frame (--last-frame 20)" in err
+
+
+def test_eval_method_scores_one_method_of_a_compare_report(tmp_path, case, capsys, bgsub_error):
+    pred, seq = case
+    report = tmp_path / "cmp"
+    report.mkdir()
+    (report / "report.txt").write_text("")
+    pred.rename(report / "mine")  # the layout of `bgsub compare --masks png`
+    (report / "other.mkv").write_bytes(b"")  # listed by its name only
+    err = bgsub_error(["eval", report, seq])
+    assert "it holds the mask sets mine/, other.mkv" in err and "--method mine" in err
+    assert main(["eval", str(report), str(seq), "--method", "mine", "--json"]) == 0
+    only = json.loads(capsys.readouterr().out)["sequences"][0]
+    assert only["counts"] == {"tp": 8, "fp": 0, "fn": 8, "tn": 16}
+    assert "method (--method) is empty" in bgsub_error(["eval", report, seq, "--method", ""])

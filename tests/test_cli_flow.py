@@ -231,3 +231,31 @@ def test_npy_file_as_model(capsys, pair, tmp_path, bgsub_error):
     err = bgsub_error(["flow", str(pair[0]), str(pair[1]), "-o", str(tmp_path / "f.flo"),
                           "--model", str(model)])
     assert "npz" in err
+
+
+def test_a_random_dot_model_on_a_photograph_is_warned_about(pair, tmp_path, capsys):
+    out = tmp_path / "f.flo"
+    assert main(["flow", str(pair[0]), str(pair[1]), "-o", str(out), "-q",
+                 "--model", "dots-translation"]) == 0
+    assert capsys.readouterr().err == (
+        f"bgsub: warning: {pair[0]}: a binary (random-dot) model expects dark images with "
+        "sparse bright dots; for photographs and natural video use a Gaussian model such as "
+        "natural\n")
+    assert main(["flow", str(pair[0]), str(pair[1]), "-o", str(out), "-q", "--overwrite"]) == 0
+    assert capsys.readouterr().err == ""  # the default model, natural, is for photographs
+
+
+def test_a_truncated_video_gives_its_flow_with_a_warning(tmp_path, capsys):
+    whole, cut = tmp_path / "whole.mkv", tmp_path / "cut.mkv"
+    big = _texture(60, 80, seed=3)
+    writer = cv2.VideoWriter(str(whole), cv2.CAP_FFMPEG, cv2.VideoWriter_fourcc(*"FFV1"), 10,
+                             (40, 40), True)
+    for k in range(12):
+        writer.write(cv2.cvtColor(big[10:50, 2 * k:2 * k + 40], cv2.COLOR_GRAY2BGR))
+    writer.release()
+    data = whole.read_bytes()
+    cut.write_bytes(data[: len(data) // 2])
+    assert main(["flow", str(cut), "-o", str(tmp_path / "f.avi"), "-q"]) == 0
+    err = capsys.readouterr().err
+    assert err.startswith(f"bgsub: warning: {cut} ended after ")
+    assert err.endswith(" of the 12 frames its header declares (truncated or damaged?)\n")

@@ -376,3 +376,156 @@ def test_methods_lists_the_default_engine_first(capsys):
     assert main(["methods"]) == 0
     first = capsys.readouterr().out.splitlines()[0]
     assert first.startswith("grbm (default):")
+
+
+# --- refusals and notes added after a user test -----------------------------------------------
+
+
+def _image_folder(folder: Path, n: int = 4) -> Path:
+    folder.mkdir(parents=True)
+    for k, frame in enumerate(_clip_frames(n)):
+        cv2.imwrite(str(folder / f"in{k + 1:06d}.png"), frame)
+    return folder
+
+
+@pytest.mark.parametrize("given, output", [
+    ("seq", "seq/input/"),              # a CDnet sequence reads its input/
+    ("seq/input", "seq/./input"),       # the folder itself, spelt another way
+    ("seq/input/*.png", "seq/input"),   # a glob lists the folder its matches are in
+    ("seq/input/in00000[1-3].png", "seq/sub/../input/"),
+])
+def test_mask_folder_that_is_the_input_folder_is_refused(tmp_path, capsys, given, output):
+    frames = _image_folder(tmp_path / "seq" / "input")
+    before = sorted(os.listdir(frames))
+    code, err = _run(capsys, tmp_path / given, "-o", tmp_path / output, "-m", "_test_diff",
+                     "--overwrite")
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "the folder the input frames are read from" in err
+    assert sorted(os.listdir(frames)) == before  # no bin*.png beside the frames
+
+
+def test_mask_folder_beside_the_input_folder_is_fine(tmp_path, capsys):
+    _image_folder(tmp_path / "seq" / "input")
+    code, err = _run(capsys, tmp_path / "seq", "-o", tmp_path / "seq" / "masks", "-m",
+                     "_test_diff")
+    assert code == 0, err
+    assert len(os.listdir(tmp_path / "seq" / "masks")) == 4
+
+
+@pytest.mark.parametrize("flag", ["-o", "--vis"])
+def test_writing_to_stdout_is_refused(tmp_path, clip, capsys, flag):
+    outputs = {"-o": tmp_path / "m.mkv", flag: "-"}
+    args = [arg for pair in outputs.items() for arg in pair]
+    code, err = _run(capsys, clip, *args, "-m", "_test_diff")
+    assert code == 2 and "writing to stdout is not supported" in err
+    assert len(err.strip().splitlines()) == 1 and not (tmp_path / "-").exists()
+
+
+@pytest.mark.parametrize("name", ["", "  "])
+def test_an_empty_method_is_refused_not_the_default(tmp_path, clip, capsys, name):
+    code, err = _run(capsys, clip, "-o", tmp_path / "m.mkv", "--method", name)
+    assert code == 2 and "--method is empty" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "m.mkv").exists()
+
+
+def test_summary_of_one_frame_and_of_frames_all_ok(tmp_path, clip, capsys):
+    code, err = _run(capsys, clip, "-o", tmp_path / "a.mkv", "-m", "_test_diff", "--stop", "1")
+    assert code == 0 and "1 frame in" in err and "1 frames" not in err
+    code, err = _run(capsys, clip, "-o", tmp_path / "b.mkv", "-m", "_test_draw", "--stop", "2")
+    assert code == 0 and "2 frames in" in err and err.strip().endswith("; all frames ok")
+    assert "not ok" not in err
+
+
+def _truncated_copy(video: Path, target: Path) -> Path:
+    """The first half of ``video``'s bytes: its header still declares every frame."""
+    data = video.read_bytes()
+    target.write_bytes(data[: len(data) // 2])
+    return target
+
+
+def test_a_truncated_video_is_processed_with_a_warning(tmp_path, clip, capsys):
+    cut = _truncated_copy(clip, tmp_path / "cut.mkv")
+    with open_source(cut) as source:
+        decoded = len(list(source))
+    assert 0 < decoded < N - 2
+    code, err = _run(capsys, cut, "-o", tmp_path / "m.mkv", "-m", "_test_diff", "--quiet")
+    assert code == 0
+    assert err == (f"bgsub: warning: {cut} ended after {decoded} of the {N} frames its header "
+                   "declares (truncated or damaged?)\n")
+    assert len(_video_frames(tmp_path / "m.mkv")) == decoded
+
+
+def test_no_truncation_warning_when_the_run_stops_before_the_damage(tmp_path, clip, capsys):
+    cut = _truncated_copy(clip, tmp_path / "cut.mkv")
+    code, err = _run(capsys, cut, "-o", tmp_path / "m.mkv", "-m", "_test_diff", "--stop", "3")
+    assert code == 0 and "bgsub: warning" not in err
+    code, err = _run(capsys, clip, "-o", tmp_path / "w.mkv", "-m", "_test_diff", "--step", "3")
+    assert code == 0 and "bgsub: warning" not in err  # a whole video read with a step
+
+
+class _DotsModel:
+    """What the engines' ``model`` attribute looks like to the warning: a random-dot model."""
+
+    output_units = "binary"
+
+
+class _WithModel(_FrameDiff):
+    def __init__(self, units: str) -> None:
+        super().__init__(30)
+        self.model = _DotsModel() if units == "binary" else None
+
+
+register_engine("_test_model", "test: has a model",
+                params={"units": Param("binary", "output units of its model")})(_WithModel)
+
+
+def test_a_random_dot_model_on_natural_frames_is_warned_about(tmp_path, clip, capsys):
+    folder = tmp_path / "bright"
+    folder.mkdir()
+    for k, frame in enumerate(_clip_frames(3)):
+        cv2.imwrite(str(folder / f"f{k}.png"), 255 - frame)  # mostly bright: not random dots
+    code, err = _run(capsys, folder, "-o", tmp_path / "m", "-m", "_test_model", "--quiet")
+    assert code == 0
+    assert err == (f"bgsub: warning: {folder}: a binary (random-dot) model expects dark images "
+                   "with sparse bright dots; for photographs and natural video use a Gaussian "
+                   "model such as natural\n")
+    assert len(os.listdir(tmp_path / "m")) == 3
+
+
+@pytest.mark.parametrize("units, dark", [("binary", True), ("gaussian", False)])
+def test_no_model_warning_for_dark_frames_or_other_models(tmp_path, clip, capsys, units, dark):
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for k, frame in enumerate(_clip_frames(2)):
+        cv2.imwrite(str(folder / f"f{k}.png"), frame if dark else 255 - frame)
+    code, err = _run(capsys, folder, "-o", tmp_path / "m", "-m", "_test_model", "--param",
+                     f"units={units}", "--quiet")
+    assert code == 0 and err == ""
+
+
+def test_ctrl_c_while_the_parser_is_built_is_one_line_exit_130(monkeypatch, capsys):
+    import bgsub.cli
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(bgsub.cli.importlib, "import_module", interrupted)
+    assert main(["methods"]) == 130
+    assert capsys.readouterr().err == "bgsub: interrupted\n"
+
+
+def test_help_states_how_masks_are_numbered(capsys):
+    with pytest.raises(SystemExit):
+        main(["run", "--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    assert "numbered by position in INPUT" in out and "starts again at bin000001.png" in out
+    assert "numbered like the input frames" not in out
+
+
+def test_masks_of_part_of_a_folder_are_numbered_from_1(tmp_path, capsys):
+    # What the help says: numbering is by position in the input, not by the frames' names.
+    folder = _image_folder(tmp_path / "seq" / "input", 12)
+    code, _ = _run(capsys, str(folder / "in00001*.png"), "-o", tmp_path / "m", "-m",
+                   "_test_diff", "--start", "1")
+    assert code == 0
+    assert sorted(os.listdir(tmp_path / "m")) == ["bin000002.png", "bin000003.png"]

@@ -6,7 +6,7 @@ import csv
 import json
 import math
 from pathlib import Path
-from typing import Optional
+from typing import Optional, Tuple
 
 import cv2
 import numpy as np
@@ -373,3 +373,194 @@ def test_ctrl_c_while_a_mask_is_written_leaves_every_output_the_same_length(
     capture = cv2.VideoCapture(str(out / "side_by_side.mp4"))
     assert int(capture.get(cv2.CAP_PROP_FRAME_COUNT)) == 3
     capture.release()
+
+
+# --------------------------------------------------------------------------------------------
+# --overwrite: this run's outputs only, and nothing compare did not write goes
+# --------------------------------------------------------------------------------------------
+
+
+def listing(folder: Path) -> set:
+    """Every file and folder below ``folder``, as relative posix paths (folders end in /)."""
+    return {p.relative_to(folder).as_posix() + ("/" if p.is_dir() else "")
+            for p in folder.rglob("*")}
+
+
+def test_overwrite_leaves_only_this_runs_outputs_and_the_users_files(
+        sequence: Path, tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    argv = ["compare", str(sequence), "-o", str(out), "-q"]
+    assert main(argv + ["--methods", "framediff,mog2"]) == 0
+    assert (out / "framediff").is_dir() and (out / "side_by_side.mp4").is_file()
+    (out / "notes.txt").write_text("mine")
+    (out / "mog2" / "keep.txt").write_text("mine too")
+    # Named like an engine's output, but not in the previous report.json's list: not compare's.
+    (out / "knn.mkv").write_bytes(b"mine as well")
+    assert main(argv + ["--methods", "mog2", "--overwrite", "--no-video", "--masks", "mkv"]) == 0
+    assert listing(out) == {"report.txt", "report.csv", "report.json", "mog2.mkv",
+                            "notes.txt", "mog2/", "mog2/keep.txt", "knn.mkv"}
+    (out / "knn.mkv").unlink()
+    assert (out / "notes.txt").read_text() == "mine"
+    data = json.loads((out / "report.json").read_text())
+    assert data["outputs"] == ["report.txt", "report.csv", "report.json", "mog2.mkv"]
+    # And back to PNG masks: the .mkv goes, the user's files stay.
+    assert main(argv + ["--methods", "mog2", "--overwrite", "--no-video"]) == 0
+    assert listing(out) == {"report.txt", "report.csv", "report.json", "notes.txt", "mog2/",
+                            "mog2/keep.txt", *(f"mog2/bin{k:06d}.png" for k in range(1, 9))}
+
+
+def test_overwrite_clears_a_dataset_roots_sequence_folders(tmp_path: Path) -> None:
+    root = tmp_path / "data"
+    write_sequence(root / "baseline" / "highway", seed=0)
+    write_sequence(root / "cameraJitter" / "traffic", seed=1)
+    out = tmp_path / "out"
+    compare_methods(root, methods=["framediff", "mog2"], report_dir=out, max_frames=3)
+    assert (out / "baseline" / "highway" / "side_by_side.mp4").is_file()
+    (out / "cameraJitter" / "mine.txt").write_text("mine")
+    compare_methods(root, methods=["mog2"], report_dir=out, max_frames=3, video=False,
+                    masks="mkv", overwrite=True)
+    assert listing(out) == {
+        "report.txt", "report.csv", "report.json", "cameraJitter/", "cameraJitter/mine.txt",
+        "cameraJitter/traffic/", "cameraJitter/traffic/mog2.mkv", "baseline/",
+        "baseline/highway/", "baseline/highway/mog2.mkv"}
+    compare_methods(root, methods=["knn"], report_dir=out, max_frames=3, video=False,
+                    masks="none", overwrite=True)
+    assert listing(out) == {"report.txt", "report.csv", "report.json", "cameraJitter/",
+                            "cameraJitter/mine.txt"}
+
+
+@pytest.mark.parametrize("dataset", [False, True])
+def test_overwrite_without_a_report_json_goes_by_compares_names(tmp_path: Path,
+                                                                 dataset: bool) -> None:
+    # An interrupted run (or an older bgsub) leaves outputs but no report.json listing them.
+    root = tmp_path / "data"
+    seq = write_sequence(root / "cat" / "famA_one")
+    source = root if dataset else seq
+    prefix = "cat/famA_one/" if dataset else ""
+    out = tmp_path / "out"
+    compare_methods(source, methods=["framediff", "mog2"], report_dir=out, max_frames=3,
+                    masks="mkv")
+    (out / "report.json").unlink()
+    (out / f"{prefix}.side_by_side.partial.mp4").write_bytes(b"left by a killed run")
+    (out / f"{prefix}framediff").mkdir()
+    (out / f"{prefix}framediff" / "bin000001.png").write_bytes(b"")
+    (out / "unrelated.mkv").write_bytes(b"not a method's name")
+    (out / "holiday").mkdir()
+    (out / "holiday" / "beach.mp4").write_bytes(b"not compare's")
+    compare_methods(source, methods=["mog2"], report_dir=out, max_frames=3, video=False,
+                    masks="none", overwrite=True)
+    assert listing(out) == {"report.txt", "report.csv", "report.json", "unrelated.mkv",
+                            "holiday/", "holiday/beach.mp4"}
+
+
+@pytest.mark.parametrize("argv_tail, message", [
+    (["--gt", "absent"], "not a CDnet sequence"),  # a typo
+    (["--gt", "late"], "ends at frame 8, before the first ground-truth frame"),
+])
+def test_overwrite_keeps_old_results_when_the_input_is_refused(
+        sequence: Path, tmp_path: Path, capsys, argv_tail, message) -> None:
+    write_sequence(tmp_path / "late", n_frames=14, speed=2, temporal_roi="10 14")
+    out = tmp_path / "out"
+    assert main(["compare", str(sequence / "input"), "--gt", str(sequence), "-o", str(out),
+                 "-m", "framediff", "-q"]) == 0
+    before = listing(out)
+    tail = [str(tmp_path / argv_tail[1]) if a in ("absent", "late") else a for a in argv_tail]
+    assert main(["compare", str(sequence / "input"), "-o", str(out), "-m", "mog2", "-q",
+                 "--overwrite", *tail]) == 2
+    assert message in capsys.readouterr().err
+    assert listing(out) == before
+
+
+def test_overwrite_does_not_remove_this_runs_input(sequence: Path, tmp_path: Path,
+                                                   capsys) -> None:
+    out = tmp_path / "out"
+    compare_methods(sequence, methods=["framediff"], report_dir=out, video=False)
+    masks = out / "framediff"
+    assert main(["compare", str(masks), "-o", str(out), "-m", "mog2", "-q", "--overwrite"]) == 2
+    assert "part of this run's input" in capsys.readouterr().err
+    assert len(list(masks.glob("bin*.png"))) == 8
+
+
+# --------------------------------------------------------------------------------------------
+# An input shorter than its ground truth
+# --------------------------------------------------------------------------------------------
+
+
+@pytest.fixture
+def short_input(tmp_path: Path) -> Tuple[Path, Path]:
+    """``(frames, gt)``: 6 frames of a 12-frame sequence whose temporal ROI is 3-12."""
+    gt = write_sequence(tmp_path / "famA_long", n_frames=12, speed=3, temporal_roi="3 12")
+    frames = tmp_path / "short"
+    frames.mkdir()
+    for k in range(1, 7):
+        name = f"in{k:06d}.png"
+        (frames / name).write_bytes((gt / "input" / name).read_bytes())
+    return frames, gt
+
+
+def test_input_shorter_than_its_ground_truth_warns_and_says_what_was_scored(
+        short_input, tmp_path: Path, capsys) -> None:
+    frames, gt = short_input
+    out = tmp_path / "out"
+    assert main(["compare", str(frames), "--gt", str(gt), "-o", str(out), "-m", "framediff",
+                 "--no-video", "-q"]) == 0
+    captured = capsys.readouterr()
+    said = "short: scored 4 of 10 ground-truth frames (3-12): the input ends at frame 6"
+    warnings = [line for line in captured.err.splitlines() if "warning" in line]
+    assert warnings == [f"bgsub: warning: {said}"]  # one line, printed with -q too
+    report = (out / "report.txt").read_text()
+    assert "short: scored frames 3-6 (4 frames)" in report and said in report
+    data = json.loads((out / "report.json").read_text())
+    assert data["rows"][0]["eval_frames"] == 4 and data["warnings"] == [said]
+    # The figures are bgsub eval's on the masks written, up to the input's last frame.
+    reference = evaluate_sequence(out / "framediff", gt, last_frame=6)
+    assert data["rows"][0]["counts"] == reference.counts.as_dict()
+    assert reference.counts.tp > 0
+
+
+@pytest.mark.parametrize("options", [{"max_frames": 5}, {"stop": 6}, {"stop": 4}])
+def test_asking_for_fewer_frames_draws_no_warning(short_input, options) -> None:
+    frames, gt = short_input
+    report = compare_methods(frames, gt=gt, methods=["framediff"], **options)
+    assert report.warnings == []
+    assert not any("the input ends" in n for n in report.rows[0].notes)
+
+
+def test_input_ending_early_without_a_stated_length_is_scored_the_same(
+        short_input, monkeypatch) -> None:
+    # A video that does not say how long it is (or says it wrongly): the end is found by
+    # reading, and the frames never read are not scored either.
+    import dataclasses
+
+    import bgsub.compare as compare_module
+
+    frames, gt = short_input
+    known = compare_methods(frames, gt=gt, methods=["framediff"])
+    real_open = compare_module.open_source
+
+    def lying_open(*args, **kwargs):
+        source = real_open(*args, **kwargs)
+        source.info = dataclasses.replace(source.info, frame_count=None)
+        return source
+
+    monkeypatch.setattr(compare_module, "open_source", lying_open)
+    unknown = compare_methods(frames, gt=gt, methods=["framediff"])
+    assert unknown.rows[0].eval_frames == known.rows[0].eval_frames == 4
+    assert unknown.rows[0].counts == known.rows[0].counts
+    assert unknown.warnings == known.warnings and len(known.warnings) == 1
+
+
+def test_dataset_sequences_with_short_inputs_warn(tmp_path: Path) -> None:
+    root = tmp_path / "data"
+    for name, roi in (("famA_cut", "1 8"), ("famA_late", "5 8")):
+        seq = write_sequence(root / name, temporal_roi=roi)
+        for k in range(4, 9):  # input/ holds frames 1-3 of the 8 in groundtruth/
+            (seq / "input" / f"in{k:06d}.png").unlink()
+    write_sequence(root / "famB_whole", seed=1)
+    report = compare_methods(root, methods=["framediff"])
+    assert report.warnings == [
+        "famA_cut: scored 3 of 8 ground-truth frames (1-8): the input ends at frame 3",
+        f"famA_late: not scored: {root / 'famA_late'} ends at frame 3, before the first "
+        f"ground-truth frame to score (5; 4 frames, 5-8, in {root / 'famA_late'})"]
+    assert [(r.name, r.eval_frames) for r in report.rows] == [
+        ("famA_cut", 3), ("famA_late", 0), ("famB_whole", 8)]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 import shutil
 from pathlib import Path
 from typing import Dict, Optional, Sequence
@@ -316,9 +317,9 @@ def test_video_frame_range_refused_for_predictions_that_number_their_frames(tmp_
 
 
 @pytest.mark.parametrize("options, words", [
-    (dict(video_start=-1), "--start takes a 0-based frame index >= 0"),
-    (dict(video_step=0), "--step must be at least 1"),
-    (dict(video_start=5, video_stop=5), r"--stop \(5\) must be after --start \(5\)"),
+    (dict(video_start=-1), r"start \(--start\) takes a 0-based frame index >= 0"),
+    (dict(video_step=0), r"step \(--step\) must be at least 1"),
+    (dict(video_start=5, video_stop=5), r"stop \(--stop, 5\) must be after start \(5\)"),
 ])
 def test_invalid_video_frame_range(tmp_path, options, words):
     video, _, gt = _ranged_video(tmp_path, range(10))
@@ -475,3 +476,110 @@ def test_a_video_range_outside_the_selected_frames_names_both(tmp_path):
     video, _, gt = _ranged_video(tmp_path, range(2))  # the masks of frames 1-2
     with pytest.raises(InputError, match=r"--stop 2\).*selected frames are 5-10"):
         evaluate_sequence(video, gt, video_stop=2, first_frame=5)
+
+
+# ------------------------------------------------- messages that say what went wrong, --method
+
+
+def test_first_frame_after_last_frame_says_so(hand_case):
+    pred, gt = hand_case
+    with pytest.raises(InputError, match=r"first_frame \(--first-frame 3\) is after last_frame "
+                                         r"\(--last-frame 2\)"):
+        evaluate_sequence(pred, gt, first_frame=3, last_frame=2)
+    assert evaluate_sequence(pred, gt, first_frame=3, last_frame=3).n_frames == 1
+
+
+def _mask_video(path: Path, masks: Sequence[np.ndarray]) -> Path:
+    from bgsub.sinks import open_mask_sink
+
+    h, w = masks[0].shape
+    with open_mask_sink(path, width=w, height=h, fps=25.0) as sink:
+        for k, mask in enumerate(masks):
+            sink.write(mask, k)
+    return path
+
+
+def _compare_report(tmp_path):
+    """A sequence (frames 1-2 of 16x16) and the layout `bgsub compare` writes for it: one
+    mask set per method, a .mkv for "good" (perfect) and a bin png folder for "empty"."""
+    gt_frame = np.zeros((16, 16), np.uint8)
+    gt_frame[4:12, 4:12] = 255
+    gt = write_sequence(tmp_path / "scenes" / "pan_s0", {1: gt_frame, 2: gt_frame})
+    report = tmp_path / "cmp" / "pan_s0"
+    report.mkdir(parents=True)
+    _mask_video(report / "good.mkv", [gt_frame, gt_frame])
+    write_bins(report / "empty", {1: 0 * gt_frame, 2: 0 * gt_frame})
+    (report.parent / "report.txt").write_text("")
+    return report, gt
+
+
+def test_a_compare_report_folder_is_refused_saying_what_it_holds(tmp_path):
+    report, gt = _compare_report(tmp_path)
+    with pytest.raises(InputError) as caught:
+        evaluate_sequence(report, gt)
+    message = str(caught.value)
+    assert f"no binNNNNNN.png masks in {report}: it holds the mask sets empty/, good.mkv" in message
+    assert "(`bgsub compare` writes one per method)" in message and "--method empty" in message
+    assert f"`bgsub eval {report / 'empty/'} {gt}`" in message
+
+
+@pytest.mark.parametrize("content, words", [
+    ({}, "(the folder is empty)"),
+    ({"in000001.jpg": b"x", "notes.txt": b"y"}, "(none of its 2 files and folders is one)"),
+])
+def test_a_folder_without_masks_says_what_it_holds(tmp_path, content, words):
+    gt = write_sequence(tmp_path / "seq", {1: GT3})
+    folder = tmp_path / "pred"
+    folder.mkdir()
+    for name, data in content.items():
+        (folder / name).write_bytes(data)
+    with pytest.raises(InputError, match=re.escape(f"no binNNNNNN.png masks in {folder} {words}")):
+        evaluate_sequence(folder, gt)
+
+
+def test_masks_numbered_from_1_for_later_frames_hint_at_the_numbering(tmp_path):
+    gt = write_sequence(tmp_path / "seq", {n: GT3 for n in range(20, 23)})
+    # What `bgsub run 'input/in00002*.jpg'` writes: the same frames, numbered from 1.
+    pred = write_bins(tmp_path / "pred", {n: GT3 for n in range(1, 4)})
+    with pytest.raises(InputError) as caught:
+        evaluate_sequence(pred, gt)
+    message = str(caught.value)
+    assert message.startswith("3 of 3 frames to evaluate have no prediction")
+    assert "the folder's masks are numbered 1-3" in message and "by position" in message
+    # Some of the wanted numbers there: a plain gap, no numbering hint.
+    write_bins(tmp_path / "more", {n: GT3 for n in (1, 20)})
+    with pytest.raises(InputError) as caught:
+        evaluate_sequence(tmp_path / "more", gt)
+    assert "2 of 3 frames" in str(caught.value) and "masks are numbered" not in str(caught.value)
+
+
+def test_method_picks_one_mask_set_of_a_compare_report(tmp_path):
+    report, gt = _compare_report(tmp_path)
+    good = evaluate(report, gt, method="good")
+    assert good.overall.f_measure == pytest.approx(1.0)
+    assert good.sequences[0].pred_path == str(report / "good.mkv")
+    empty = evaluate(report, gt, method="empty")
+    assert empty.overall.recall == 0.0
+    # A dataset: the method's masks in each sequence's folder of the report.
+    dataset = evaluate(report.parent, gt.parent, method="good")
+    assert [s.name for s in dataset.sequences] == ["pan_s0"]
+    assert dataset.overall.f_measure == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("method, pred, words", [
+    ("knn", "report", "no masks of method 'knn' in"),
+    ("", "report", "method (--method) is empty"),
+    ("a/b", "report", "not a path"),
+    ("good", "video", "is not a folder"),
+])
+def test_method_refusals(tmp_path, method, pred, words):
+    report, gt = _compare_report(tmp_path)
+    path = report if pred == "report" else report / "good.mkv"
+    with pytest.raises(InputError, match=re.escape(words)):
+        evaluate(path, gt, method=method)
+
+
+def test_method_missing_from_a_dataset_sequence(tmp_path):
+    report, gt = _compare_report(tmp_path)
+    with pytest.raises(InputError, match=r"no prediction of method 'knn' in .* for 1 of 1 "):
+        evaluate(report.parent, gt.parent, method="knn")

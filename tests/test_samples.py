@@ -294,3 +294,29 @@ def test_shipped_sample_is_the_pan_scene():
     expected = next(iter(render_frames(spec))).image
     # The mp4 is lossy (mp4v), but its first frame is the scene's.
     assert np.abs(first.astype(int) - expected).mean() < 6
+
+
+@pytest.mark.parametrize("args, hinted", [
+    (["--category", "pan", "sc1/"], True),       # looks like a path
+    (["--category", "pan", "sc1"], True),        # no DIR given: it may be meant as DIR
+    (["--seed", "1", "scenes/"], True),
+    (["out", "--category", "pan", "pann"], False),  # DIR given: a plain typo
+])
+def test_cli_a_dir_after_a_list_option_says_where_dir_goes(tmp_path, monkeypatch, bgsub_error,
+                                                          args, hinted):
+    monkeypatch.chdir(tmp_path)  # the default DIR, were anything written
+    err = bgsub_error(["samples", *args])
+    assert ("put DIR before" in err) == hinted
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_cli_help_examples_keep_a_gap_before_their_comment(capsys):
+    with pytest.raises(SystemExit):
+        main(["samples", "--help"])
+    examples = capsys.readouterr().out.split("examples:\n")[1].splitlines()
+    commented = [line for line in examples if "   " in line.strip()]
+    assert len(commented) == 3
+    # Every comment starts in the same column, after at least two spaces.
+    starts = {len(line) - len(line.split("   ")[-1].lstrip()) for line in commented}
+    assert len(starts) == 1
+    assert "--seed 0   the scene shipped as samples/pan.mp4" in "\n".join(examples)

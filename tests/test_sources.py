@@ -252,6 +252,8 @@ def test_frames_smaller_than_a_patch(tmp_path):
     small = MIN_FRAME_SIZE - 1
     message = _error(_write_folder(tmp_path / "tiny", _frames(2, w=small, h=small)))
     assert f"{small}x{small}" in message and "13x13" in message
+    # True for every engine, MOG2 included (it reads no patches).
+    assert "the smallest frames bgsub processes" in message and "patches" not in message
 
 
 def test_resizing_below_a_patch(tmp_path):
@@ -303,3 +305,52 @@ def test_whole_jpegs_read_as_before(tmp_path):
 def test_an_empty_input_path_is_refused_not_read_as_the_current_folder(path):
     with pytest.raises(InputError, match="empty"):
         open_source(path)
+
+
+# ------------------------------------------------------------------ truncation, folders
+
+
+def _truncated(path: Path, n: int) -> Path:
+    """A video of ``n`` frames cut to the first half of its bytes: its header still says ``n``."""
+    video = _write_video(path.with_name("whole" + path.suffix), _frames(n))
+    data = video.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+    return path
+
+
+def test_a_video_that_ends_before_its_declared_length_says_so(tmp_path):
+    cut = _truncated(tmp_path / "cut.mkv", 30)
+    with open_source(cut) as source:
+        assert source.info.frame_count == 30
+        assert source.truncation() is None  # nothing read yet
+        decoded = len(list(source))
+        assert 0 < decoded < 28
+        assert source.truncation() == (f"{cut} ended after {decoded} of the 30 frames its "
+                                       "header declares (truncated or damaged?)")
+
+
+@pytest.mark.parametrize("kwargs", [dict(stop=5), dict(start=2, stop=8, step=3)])
+def test_no_truncation_when_the_range_stops_before_the_damage(tmp_path, kwargs):
+    with open_source(_truncated(tmp_path / "cut.mkv", 30), **kwargs) as source:
+        list(source)
+        assert source.truncation() is None
+
+
+@pytest.mark.parametrize("step", [1, 4])
+def test_a_whole_video_is_not_truncated(tmp_path, step):
+    with open_source(_write_video(tmp_path / "c.mkv", _frames(10)), step=step) as source:
+        assert len(list(source)) == len(range(0, 10, step))
+        assert source.truncation() is None
+
+
+def test_folders_the_frames_are_listed_from(tmp_path):
+    seq = tmp_path / "seq"
+    _write_folder(seq / "input", _frames(2))
+    _write_folder(tmp_path / "other" / "input", _frames(1), first=3)
+    with open_source(seq) as source:  # a CDnet sequence: its input/
+        assert source.folders == ((seq / "input").resolve(),)
+    with open_source(str(tmp_path / "*" / "input" / "in*.png")) as source:
+        assert set(source.folders) == {(seq / "input").resolve(),
+                                       (tmp_path / "other" / "input").resolve()}
+    with open_source(_write_video(tmp_path / "c.mkv", _frames(2))) as source:
+        assert source.folders == ()

@@ -6,8 +6,9 @@ This module only dispatches and turns errors into one line on stderr:
 
 * :class:`bgsub.errors.BgsubError` -> its message, exit status ``err.exit_code`` (2 bad input, 1
   failure while processing);
-* Ctrl-C -> exit status 130 (sinks have already closed their partial output and said so);
-  ``kill`` (SIGTERM) and a closed terminal (SIGHUP) take the same path, exit status 128 + signal;
+* Ctrl-C -> exit status 130 (sinks have already closed their partial output and said so), also
+  while the parser is built (the sub-commands' imports); ``kill`` (SIGTERM) and a closed
+  terminal (SIGHUP) take the same path while the command runs, exit status 128 + signal;
 * an OSError that reaches here (a full disk or a closed stdout while printing) -> its reason,
   exit status 1;
 * anything else is a bug: one line naming it, exit status 1 (``BGSUB_DEBUG=1`` shows the traceback).
@@ -101,6 +102,16 @@ def _terminate_like_ctrl_c() -> Iterator[None]:
 
 def main(argv: Optional[List[str]] = None) -> int:
     """Entry point of the ``bgsub`` console script; returns the exit status."""
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:
+        # Ctrl-C outside the command itself: while the parser imports the sub-commands (the
+        # first fraction of a second), or while an error above is being printed.
+        print("bgsub: interrupted", file=sys.stderr)
+        return 130
+
+
+def _main(argv: Optional[List[str]]) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "handler", None):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from bgsub.cli.common import check_distinct, model_files, note
+from bgsub.cli.common import check_distinct, model_files, warn_if_binary_model
 from bgsub.errors import InputError, OutputError
 
 # --zoom enlarges a patch-sized result for viewing (13 px x 64 = 832 px); far more only costs
@@ -135,8 +135,7 @@ def run(args: argparse.Namespace) -> int:
     if h < p or w < p:
         raise InputError(f"images are {w}x{h}, smaller than the model's {p}x{p} patches; use --resize")
     _check_sizes(args, p, w, h)
-    if model.output_units == "binary" and float(np.mean(images[0])) > 0.35:
-        note("a binary (random-dot) model expects dark images with sparse bright dots", quiet=args.quiet)
+    warn_if_binary_model(model, images[0], what=args.x)
     result = analogy_images(model, *images, stride=args.stride)
     picture = np.clip(np.rint(result * 255.0), 0, 255).astype(np.uint8)
     if args.zoom > 1:

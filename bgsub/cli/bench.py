@@ -68,7 +68,8 @@ def run(args: argparse.Namespace) -> int:
     from bgsub.engines import available_engines
 
     width, height = parse_size(args.size)
-    methods = (parse_methods(args.methods) if args.methods
+    # -m "" is a mistake, not "all" (as in `bgsub compare`)
+    methods = (parse_methods(args.methods) if args.methods is not None
                else [spec.name for spec in available_engines()])
     params = parse_method_params(args.param, methods)
     report = bench_methods(

@@ -55,18 +55,36 @@ def note(message: str, *, quiet: bool = False) -> None:
         print(f"bgsub: {message}", file=sys.stderr)
 
 
-def check_distinct(inputs: Iterable[Any], outputs: List[Tuple[str, Any]]) -> None:
-    """Refuse an output that is one of the inputs or is given to two options.
+def warn(message: str) -> None:
+    """A one-line ``bgsub: warning: ...`` on stderr: the result may not be what was meant.
+    Printed with ``--quiet`` too (as the lossy-codec warning of :mod:`bgsub.sinks` is)."""
+    print(f"bgsub: warning: {message}", file=sys.stderr)
+
+
+def check_distinct(inputs: Iterable[Any], outputs: List[Tuple[str, Any]], *,
+                   input_folders: Iterable[Path] = ()) -> None:
+    """Refuse an output that is stdout (``-``), one of the inputs, a folder the input frames
+    are listed from, or is given to two options.
 
     ``outputs`` pairs each option (``"-o"``, ``"--vis"``) with its path; unset paths (None or
-    "") are skipped. Even ``--overwrite`` must not replace what the command is reading.
+    "") are skipped. ``input_folders`` are resolved folders whose images are the input
+    (:attr:`bgsub.sources.FrameSource.folders`): masks written there would be read as frames
+    the next time. Even ``--overwrite`` must not replace or add to what the command is reading.
     """
     sources = {Path(p).resolve() for p in inputs if p}
+    folders = set(input_folders)
     seen = {}
     for flag, path in outputs:
         if not path:
             continue
+        if str(path) == "-":
+            raise OutputError(f"{flag} -: writing to stdout is not supported; give a file or "
+                              "folder name")
         resolved = Path(path).resolve()
+        if resolved in folders:
+            raise OutputError(f"{path}: {flag} is the folder the input frames are read from; "
+                              "what is written there would be read as frames next time (give "
+                              "another folder)")
         if resolved in sources:
             raise OutputError(f"{path}: {flag} would overwrite an input")
         if resolved in seen:
@@ -80,3 +98,42 @@ def model_files(model: str) -> List[str]:
     from bgsub.rbm import SHIPPED_MODELS
 
     return [] if model in SHIPPED_MODELS else [model]
+
+
+def is_binary_model(model: Any) -> bool:
+    """The model has binary output units: a random-dot model such as ``dots-rotation``."""
+    return getattr(model, "output_units", None) == "binary"
+
+
+def warn_if_binary_model(model: Any, image: Any, *, what: str = "") -> None:
+    """Warn when a model with binary output units (a random-dot model such as
+    ``dots-rotation``) is given an image that is not dark with sparse bright dots: it reads
+    little motion in photographs or natural video, and what it reads is mostly wrong.
+
+    ``image`` is a gray or BGR frame, uint8 (0-255) or float (0-1); ``what`` names it (a file)
+    in the message. Models without ``output_units`` (any other patch-motion model) pass.
+    """
+    import numpy as np
+
+    if not is_binary_model(model):
+        return
+    values = np.asarray(image)
+    mean = float(values.mean()) / (255.0 if values.dtype == np.uint8 else 1.0)
+    if mean > 0.35:  # random dots: mostly black
+        where = f"{what}: " if what else ""
+        warn(f"{where}a binary (random-dot) model expects dark images with sparse bright dots; "
+             "for photographs and natural video use a Gaussian model such as natural")
+
+
+def warn_if_binary_model_on_source(model: Any, source: Any, *, what: str = "") -> None:
+    """:func:`warn_if_binary_model` for the first frame of a :class:`bgsub.sources.FrameSource`,
+    read in a pass of its own, and only when the model is a binary one."""
+    if not is_binary_model(model):
+        return
+    frames = iter(source)
+    try:
+        first = next(frames, None)
+    finally:
+        frames.close()
+    if first is not None:
+        warn_if_binary_model(model, first[1], what=what)

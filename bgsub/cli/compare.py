@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any, Dict, List
 
-from bgsub.cli.common import add_output_options, add_source_options, note, source_kwargs
+from bgsub.cli.common import add_output_options, add_source_options, note, source_kwargs, warn
 from bgsub.errors import InputError
 
 _DESCRIPTION = """\
@@ -24,10 +24,16 @@ NAME before its first '_', e.g. BMS26_cars1 -> BMS26), or any video / image fold
 REPORT_DIR receives report.txt (also printed), report.csv and report.json; the masks of each
 method (METHOD/binNNNNNN.png, or METHOD.mkv with --masks mkv); and side_by_side.mp4 (input and
 one labelled mask per method). For a dataset root, masks and videos go to REPORT_DIR/SEQUENCE/.
+An existing REPORT_DIR that is not empty needs --overwrite, which removes the outputs of the
+compare run that wrote there before (those its report.json lists or, without one, the files
+named as compare names them) once the input is accepted; other files stay.
 
 Only frames inside the temporal ROI are scored; labels 85 and 170 are ignored. ROI.bmp is
 used for a single sequence and ignored for dataset roots (the real CDnet traffic ROI.bmp has the
-wrong size); --roi-bmp / --no-roi-bmp override that."""
+wrong size); --roi-bmp / --no-roi-bmp override that. An input that ends before its ground truth
+does is scored up to its last frame, with a warning and a note in the report saying how many of
+the ground-truth frames were scored (as `bgsub eval --last-frame` on its masks); --max-frames
+and --stop ask for fewer frames on purpose and draw no warning."""
 
 _EPILOG = """\
 examples:
@@ -55,7 +61,8 @@ def register(subparsers: Any) -> None:
                         help="CDnet sequence folder, dataset root, video, image folder or glob")
     parser.add_argument("-o", "--output", required=True, metavar="REPORT_DIR",
                         help="folder for the report, masks and videos (must not exist or be "
-                             "empty, unless --overwrite)")
+                             "empty, unless --overwrite: then the previous compare run's outputs "
+                             "there are removed, other files stay)")
     parser.add_argument("-m", "--methods", default=None, metavar="M1,M2,...",
                         help="comma-separated engines (default: all registered; see "
                              "`bgsub methods`)")
@@ -148,5 +155,7 @@ def run(args: argparse.Namespace) -> int:
         overwrite=args.overwrite, quiet=args.quiet, **source_kwargs(args),
     )
     print(report.to_text())  # the result itself: printed with --quiet too
+    for warning in report.warnings:  # e.g. an input shorter than its ground truth
+        warn(warning)
     note(f"report written to {Path(args.output) / 'report.txt'} (.csv, .json)", quiet=args.quiet)
     return 0

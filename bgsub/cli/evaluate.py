@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from bgsub.cli.common import warn
 from bgsub.errors import InputError, OutputError
 from bgsub.sinks import check_file_output
 
@@ -22,7 +23,8 @@ then PRED is a folder holding one prediction per sequence (NAME/ or NAME.mkv, or
 relative path as in the dataset, e.g. cameraJitter/traffic/), and the results are averaged the
 CDnet way: a category is the mean of its sequences, overall is the mean of the categories.
 The category of root/CATEGORY/NAME is CATEGORY; of root/NAME, the part of NAME before its first
-'_' (BMS26_cars1 -> BMS26).
+'_' (BMS26_cars1 -> BMS26). A `bgsub compare` report folder holds one mask set per method
+(METHOD/ or METHOD.mkv, in SEQUENCE/ for a dataset): --method METHOD scores one of them.
 
 Only frames inside the temporal ROI count, and only pixels inside ROI.bmp whose label is 0 or 50
 (negative) or 255 (positive); 85 (outside ROI) and 170 (unknown) are ignored; other labels are an
@@ -43,6 +45,7 @@ examples:
   bgsub eval masks.mkv scenes/pan_s1 --start 30 --step 2       from `run --start 30 --step 2`
   bgsub eval results/ scenes/ --csv scores.csv                 every sequence under scenes/
   bgsub eval results/ scenes/ --json > scores.json             machine-readable
+  bgsub eval cmp_all/ scenes/ --method grbm                    grbm's masks of a compare report
 
 exit status: 0 evaluated, 2 bad input (missing frames, size mismatch, bad ground truth)
 """
@@ -61,6 +64,10 @@ def register(subparsers: Any) -> None:
                              "for a dataset)")
     parser.add_argument("groundtruth", metavar="GROUNDTRUTH",
                         help="CDnet sequence folder or dataset root")
+    parser.add_argument("-m", "--method", default=None, metavar="METHOD",
+                        help="PRED is a `bgsub compare` report folder: score the masks of "
+                             "METHOD (METHOD/ or METHOD.mkv in it, or in each sequence's "
+                             "folder of it)")
     out = parser.add_argument_group("output")
     out.add_argument("--json", action="store_true", help="print the results as JSON")
     out.add_argument("--csv", metavar="FILE", default=None,
@@ -114,6 +121,7 @@ def run(args: argparse.Namespace) -> int:
     result = evaluate(
         args.pred, args.groundtruth,
         ignore_roi_bmp=args.no_roi_bmp, allow_missing=args.allow_missing,
+        method=args.method,
         skip_first=args.skip_first, first_frame=args.first_frame, last_frame=args.last_frame,
         video_start=args.start, video_step=args.step, video_stop=args.stop, quiet=args.quiet,
     )
@@ -138,6 +146,6 @@ def run(args: argparse.Namespace) -> int:
                 hint = ("; check that --start/--step/--stop are those bgsub run wrote the mask "
                         "video with" if given else "; if bgsub run wrote the mask video with "
                         "--start/--step/--stop, give eval the same flags")
-            print(f"bgsub: warning: {seq.name}: {len(seq.missing)} frames had no prediction and "
-                  f"were counted as background{hint}", file=sys.stderr)
+            warn(f"{seq.name}: {len(seq.missing)} frames had no prediction and were counted as "
+                 f"background{hint}")
     return 0

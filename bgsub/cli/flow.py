@@ -10,7 +10,8 @@ from typing import Any, List, Optional, Tuple
 import numpy as np
 
 from bgsub.cli.common import (add_output_options, add_source_options, check_distinct,
-                              model_files, note, progress, source_kwargs)
+                              model_files, note, progress, source_kwargs, warn,
+                              warn_if_binary_model, warn_if_binary_model_on_source)
 from bgsub.errors import InputError, OutputError
 
 _DESCRIPTION = """\
@@ -187,6 +188,7 @@ def _run_pair(args: argparse.Namespace, model: Any) -> int:
         h2, w2 = frame2.shape[:2]
         raise InputError(f"images differ in size: {args.input} is {w}x{h}, {args.frame2} is {w2}x{h2}")
     _check_patch_fits(model, w, h, f"{args.input} is")
+    warn_if_binary_model(model, frame1, what=args.input)
     estimate = _estimate(frame1, frame2, model, args)
     flow = estimate.dense
     write_flo(args.output, flow, overwrite=args.overwrite)
@@ -224,6 +226,7 @@ def _run_video(args: argparse.Namespace, model: Any) -> int:
     with open_source(args.input, **source_kwargs(args)) as source:
         info = source.info
         _check_patch_fits(model, info.width, info.height, f"frames of {args.input} are")
+        warn_if_binary_model_on_source(model, source, what=args.input)
         fps = info.fps / max(1, args.step)
         previous = None
         prior = None
@@ -238,6 +241,9 @@ def _run_video(args: argparse.Namespace, model: Any) -> int:
                                             step=args.arrow_step, max_magnitude=args.max_magnitude))
                     written += 1
                 previous = frame
+    short = source.truncation()  # decoding ended well before the end the video declares
+    if short:
+        warn(short)
     if written == 0:
         raise InputError(f"{args.input}: needs at least two frames for a flow video")
     note(f"{written} flow pictures (one per consecutive frame pair) written to {args.output}",

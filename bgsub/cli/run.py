@@ -25,16 +25,21 @@ from bgsub.sinks import (
     open_mask_sink,
     process,
 )
-from bgsub.sources import VideoInfo, open_source
+from bgsub.sources import FrameSource, VideoInfo, open_source
 
 _DESCRIPTION = """\
 Find the moving objects in a video and write one foreground mask per frame (0 = background,
 255 = foreground). INPUT is a video file, a folder of images (natural order; a CDnet sequence
 folder reads its input/ folder) or a quoted glob pattern. OUTPUT is a mask video (.mkv or .avi:
 lossless FFV1; .mp4 or .mov: lossy) or, for a name without an extension, a folder of CDnet-style
-binNNNNNN.png masks numbered like the input frames (bin000123.png is the mask of in000123.jpg);
-other extensions are refused. A mask video holds no frame numbers: to score one written with
---start/--step, give `bgsub eval` the same --start/--step/--stop.
+binNNNNNN.png masks; other extensions are refused. Masks are numbered by position in INPUT,
+whatever the frames' file names: bin000001.png is the mask of INPUT's first frame (the video's
+first, or the folder's or glob's first image in natural order), and --start/--step keep that
+count (--start 100 --step 2: bin000101.png, bin000103.png, ...). So a whole CDnet input/ folder
+gives bin000123.png for in000123.jpg, but a glob or folder of part of a sequence
+('input/in00002*.jpg') starts again at bin000001.png: to keep the input's numbers, give the
+whole folder with --start/--stop. A mask video holds no frame numbers: to score one written
+with --start/--step, give `bgsub eval` the same --start/--step/--stop.
 
 Outputs are written under a temporary name and renamed when done; after Ctrl-C they hold the
 frames processed so far and are still valid."""
@@ -78,27 +83,39 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _method(name: Optional[str]) -> str:
-    return name or engines.default_method()
+    if name is None:
+        return engines.default_method()
+    if not name.strip():  # --method "" is a mistake, not "the default"
+        raise InputError("--method is empty (give an engine name, or leave it out for "
+                         f"{engines.default_method()}; see `bgsub methods`)")
+    return name
 
 
-def _check_outputs(args: argparse.Namespace) -> None:
+def _check_outputs(args: argparse.Namespace, source: FrameSource) -> None:
     """Refuse bad outputs before any frame is processed."""
     outputs = [("-o", args.output), ("--vis", args.vis), ("--flow-vis", args.flow_vis)]
     outputs = [(flag, path) for flag, path in outputs if path]
+    # First: "-" and the input's own folder are refused whether or not they look writable.
+    common.check_distinct([args.input], outputs, input_folders=source.folders)
     check_mask_output(args.output, overwrite=args.overwrite)
     for flag, path in outputs[1:]:
         check_video_output(path, overwrite=args.overwrite)
-    common.check_distinct([args.input], outputs)
+
+
+def _plural(count: int, noun: str) -> str:
+    return f"{count} {noun}{'s' * (count != 1)}"
 
 
 def _summary(stats: RunStats, method: str, outputs: List[str]) -> str:
-    text = (f"{stats.frames} frames in {stats.seconds:.1f} s ({stats.fps:.1f} fps) with "
-            f"{method} -> {', '.join(outputs)}")
-    if stats.has_status:
-        text += f"; {stats.not_ok} frame{'s' * (stats.not_ok != 1)} not ok"
+    text = (f"{_plural(stats.frames, 'frame')} in {stats.seconds:.1f} s ({stats.fps:.1f} fps) "
+            f"with {method} -> {', '.join(outputs)}")
+    if stats.has_status and stats.frames:
         if stats.not_ok:
             status, count = stats.statuses.most_common(1)[0]
-            text += f" (most often {status!r}: {count})"
+            text += (f"; {_plural(stats.not_ok, 'frame')} not ok (most often {status!r}: "
+                     f"{count})")
+        else:
+            text += "; all frames ok" if stats.frames > 1 else "; frame ok"
     return text
 
 
@@ -127,11 +144,14 @@ def run(args: argparse.Namespace) -> int:
     params = engines.parse_params(method, args.param)
     source = open_source(args.input, **common.source_kwargs(args))
     info = source.info
-    _check_outputs(args)
+    _check_outputs(args, source)
     engine = engines.create_engine(method, **params)
     if args.flow_vis and not callable(getattr(engine, "debug_image", None)):
         raise InputError(f"--flow-vis: method {method!r} cannot draw its motion (it has no "
                          "debug_image); use a moving-camera method such as grbm")
+    # What `bgsub analogy` and `bgsub flow` say of a random-dot model on natural images.
+    common.warn_if_binary_model_on_source(getattr(engine, "model", None), source,
+                                          what=args.input)
     for notice in (_fps_notice(info, args), _eval_notice(args)):
         if notice:
             common.note(notice, quiet=args.quiet)
@@ -151,6 +171,9 @@ def run(args: argparse.Namespace) -> int:
         frames = common.progress(source, total=info.frame_count, desc=method, quiet=args.quiet)
         stats = process(frames, engine, masks, vis=vis, flow_vis=flow_vis)
 
+    short = source.truncation()  # decoding ended well before the end the video declares
+    if short:
+        common.warn(short)
     common.note(_summary(stats, method, [p for p in (args.output, args.vis, args.flow_vis) if p]),
                 quiet=args.quiet)
     return 0

@@ -23,12 +23,15 @@ same scene."""
 
 _EPILOG = """\
 examples:
-  bgsub samples                                 every category, seed 0, into bgsub-samples/
-  bgsub samples scenes/ --category pan --seed 0 the scene shipped as samples/pan.mp4
+  bgsub samples                                   every category, seed 0, into bgsub-samples/
+  bgsub samples scenes/ --category pan --seed 0   the scene shipped as samples/pan.mp4
   bgsub samples scenes/ --category pan jitter --seed 0 1 2 --frames 60
   bgsub samples scenes/ --size 640x480 --overwrite
-  bgsub samples --list                          the categories and what their camera does
+  bgsub samples --list                            the categories and what their camera does
 """
+
+
+_DEFAULT_DIR = "bgsub-samples"
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -36,8 +39,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "samples", help="write synthetic moving-camera scenes with ground truth",
         description=_DESCRIPTION, epilog=_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("dir", nargs="?", default="bgsub-samples", metavar="DIR",
-                        help="folder to write the scenes into (default: bgsub-samples)")
+    parser.add_argument("dir", nargs="?", default=None, metavar="DIR",
+                        help=f"folder to write the scenes into (default: {_DEFAULT_DIR})")
     parser.add_argument("-c", "--category", action="extend", nargs="+", metavar="NAME",
                         help="scene categories, separated by spaces or commas (default: all; "
                              "see --list); put DIR before this option")
@@ -67,22 +70,33 @@ def parse_size(text: str) -> Tuple[int, int]:
     return int(match.group(1)), int(match.group(2))
 
 
-def _seeds(values: Optional[List[str]]) -> List[int]:
+def _dir_hint(value: str, option: str, dir_given: bool) -> str:
+    """What to add to the refusal of ``value`` given to ``option`` when it may be DIR: both
+    options take several values, so `--category pan scenes/` reads scenes/ as a category."""
+    if "/" in value or "\\" in value or not dir_given:
+        return (f"; if {value!r} is the output folder, put DIR before {option} "
+                f"(bgsub samples {value} {option} ...)")
+    return ""
+
+
+def _seeds(values: Optional[List[str]], dir_given: bool = True) -> List[int]:
     seeds = []
     for part in _split(values) or ["0"]:
         if not part.isdigit():
-            raise InputError(f"--seed takes non-negative integers, not {part!r}")
+            raise InputError(f"--seed takes non-negative integers, not {part!r}"
+                             + _dir_hint(part, "--seed", dir_given))
         seeds.append(int(part))
     return list(dict.fromkeys(seeds))
 
 
-def _categories(values: Optional[List[str]]) -> List[str]:
+def _categories(values: Optional[List[str]], dir_given: bool = True) -> List[str]:
     if values is not None and not _split(values):  # "-c ," names nothing: not "all"
         raise InputError("--category is empty (give names, or leave it out for all)")
     names = _split(values) or list(CATEGORIES)
     for name in names:
         if name not in CATEGORIES:
-            raise InputError(f"unknown category {name!r} (available: {', '.join(CATEGORIES)})")
+            raise InputError(f"unknown category {name!r} (available: {', '.join(CATEGORIES)})"
+                             + _dir_hint(name, "--category", dir_given))
     return list(dict.fromkeys(names))
 
 
@@ -93,9 +107,11 @@ def run(args: argparse.Namespace) -> int:
             print(f"{name:<{width}}  {description}")
         return 0
     width, height = parse_size(args.size)
+    dir_given = args.dir is not None
     specs = [SceneSpec(category, seed=seed, width=width, height=height, n_frames=args.frames)
-             for category in _categories(args.category) for seed in _seeds(args.seed)]
-    out_dir = Path(args.dir)
+             for category in _categories(args.category, dir_given)
+             for seed in _seeds(args.seed, dir_given)]
+    out_dir = Path(args.dir if dir_given else _DEFAULT_DIR)
     if out_dir.exists() and not out_dir.is_dir():
         raise OutputError(f"{out_dir} exists and is not a folder")
     if not args.overwrite:  # refuse before writing anything

@@ -415,8 +415,8 @@ def estimate_flow(
     iterations : int
         Readouts at the finest level: each one after the first re-warps by the motion fitted to
         the one before, so the model reads residuals near zero, where it is most accurate
-        (costs one more batched inference per extra iteration). Coarser levels read once.
-
+        (costs one more batched inference per extra iteration). The levels between the
+        coarsest and ``finest`` read once; the coarsest reads ``coarse_iterations`` times.
     coarse_iterations : int
         Readouts at the coarsest level, each after re-warping by the fit of the one before
         (like ``iterations``); the levels between it and ``finest`` read once.
@@ -484,41 +484,17 @@ def estimate_flow(
     cstride, fine, fine_stride, pre_stride = (plan.coarse_stride, plan.fine, plan.fine_stride,
                                               plan.pre_stride)
 
-    h_est = np.eye(3) if prior is None else np.asarray(prior, np.float64)
     status = "ok"
     if (prior is not None or search > 0) and levels > 1:
-        # Several hypotheses for the start: the prior (a steady pan continues) and no motion (a
-        # shaking camera reverses); the coarsest level keeps the best of them after one readout
-        # each: the one most patches agree with, or (start_tolerance) the one under which most
-        # textured pixels keep their gray value. A shake beyond the level's range defeats both:
-        # then (when fewer than search_below of the patches agree, or with no prior to go by) a
-        # grid of shifts ``search`` steps of about the model's range on each side is read too.
-        # (A first frame of a fast pan whose tracked subject reads as "no motion" would
-        # otherwise set a wrong prior for the next.)
-        lvl = levels - 1
-        factor = 0.5**lvl
-        step = max(1.0, rng - 1.0) / factor
-        args = (pyr1[lvl], pyr2[lvl])
-        rest = (factor, model, p, cstride, rng, min_texture, max_patches, start_model,
-                ransac_threshold)
-        basic = [np.eye(3)] + ([h_est] if prior is not None else [])
-        grid = [np.array([[1.0, 0, i * step], [0, 1.0, j * step], [0, 0, 1]])
-                for i in range(-search, search + 1) for j in range(-search, search + 1)
-                if i or j]
-        if grid and (search_below >= 1.0 or prior is None):
-            basic, grid = basic + grid, []  # read anyway: one batched readout of all of them
-        h_est, support, score, shift = _best_start(*args, basic, *rest, h_est,
-                                                   texture_scale=texture_scale,
-                                                   tolerance=start_tolerance, cache=cache)
-        if grid and support < search_below:
-            h_grid, _, grid_score, grid_shift = _best_start(*args, grid, *rest, h_est,
-                                                            texture_scale=texture_scale,
-                                                            tolerance=start_tolerance,
-                                                            cache=cache)
-            if grid_score > score:
-                h_est, shift = h_grid, grid_shift
+        h_est, shift = _choose_start(
+            pyr1[levels - 1], pyr2[levels - 1], levels - 1, prior, model=model, p=p,
+            cstride=cstride, rng=rng, min_texture=min_texture, max_patches=max_patches,
+            start_model=start_model, ransac_threshold=ransac_threshold, search=search,
+            search_below=search_below, texture_scale=texture_scale,
+            start_tolerance=start_tolerance, cache=cache)
         started = True  # the start's readout was the coarsest level's first
     else:
+        h_est = np.eye(3) if prior is None else np.asarray(prior, np.float64)
         started, shift = False, np.inf
     # The coarsest level has settled once a readout barely moved its fit: skip its re-reads.
     settled = shift < converged
@@ -561,6 +537,44 @@ def estimate_flow(
     if dense:
         out.dense = dense_from_patches(out, shape=g1.shape, patch_size=p)
     return out
+
+
+def _choose_start(g1: np.ndarray, g2: np.ndarray, lvl: int, prior: Optional[np.ndarray], *,
+                  model: Any, p: int, cstride: int, rng: int, min_texture: float,
+                  max_patches: Optional[int], start_model: str, ransac_threshold: float,
+                  search: int, search_below: float, texture_scale: float,
+                  start_tolerance: float, cache: dict) -> Tuple[np.ndarray, float]:
+    """The coarsest level's start: ``(h_est, shift)``, the full-resolution ``(3, 3)`` motion
+    of the best candidate after one readout and fit, and how far that readout moved it (in
+    level ``lvl``'s pixels at the corners; see ``converged``).
+
+    Several hypotheses: the prior (a steady pan continues) and no motion (a shaking camera
+    reverses); the level keeps the best of them after one readout each: the one most patches
+    agree with, or (``start_tolerance``) the one under which most textured pixels keep their
+    gray value. A shake beyond the level's range defeats both: then (when fewer than
+    ``search_below`` of the patches agree, or with no prior to go by) a grid of shifts
+    ``search`` steps of about the model's range on each side is read too. (A first frame of a
+    fast pan whose tracked subject reads as "no motion" would otherwise set a wrong prior for
+    the next.)
+    """
+    factor = 0.5**lvl
+    step = max(1.0, rng - 1.0) / factor
+    h_est = np.eye(3) if prior is None else np.asarray(prior, np.float64)
+    rest = (factor, model, p, cstride, rng, min_texture, max_patches, start_model,
+            ransac_threshold)
+    options = dict(texture_scale=texture_scale, tolerance=start_tolerance, cache=cache)
+    basic = [np.eye(3)] + ([h_est] if prior is not None else [])
+    grid = [np.array([[1.0, 0, i * step], [0, 1.0, j * step], [0, 0, 1]])
+            for i in range(-search, search + 1) for j in range(-search, search + 1)
+            if i or j]
+    if grid and (search_below >= 1.0 or prior is None):
+        basic, grid = basic + grid, []  # read anyway: one batched readout of all of them
+    h_est, support, score, shift = _best_start(g1, g2, basic, *rest, h_est, **options)
+    if grid and support < search_below:
+        h_grid, _, grid_score, grid_shift = _best_start(g1, g2, grid, *rest, h_est, **options)
+        if grid_score > score:
+            h_est, shift = h_grid, grid_shift
+    return h_est, shift
 
 
 def _level(g1, g2, h_est, model, p, stride, rng, min_texture, max_patches, *,

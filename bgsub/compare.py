@@ -967,6 +967,7 @@ def compare_methods(
     step: int = 1,
     scale: Optional[float] = None,
     width: Optional[int] = None,
+    fps: Optional[float] = None,
     max_frames: Optional[int] = None,
     masks: str = "png",
     video: bool = True,
@@ -998,9 +999,9 @@ def compare_methods(
     ignore_roi_bmp : bool, optional
         Ignore ``ROI.bmp``; default: ignored for dataset roots (the real CDnet traffic ROI.bmp
         has the wrong size), used for a single sequence.
-    start, stop, step, scale, width
-        Frame range and resizing, as :func:`bgsub.sources.open_source`; applied to every
-        sequence. Resized masks are brought back to the ground truth's size (nearest
+    start, stop, step, scale, width, fps
+        Frame range, resizing and frame rate, as :func:`bgsub.sources.open_source`; applied to
+        every sequence. Resized masks are brought back to the ground truth's size (nearest
         neighbour) for scoring and writing.
     max_frames : int, optional
         Process at most this many frames per sequence.
@@ -1062,7 +1063,7 @@ def compare_methods(
             open_ground_truth(job.gt, ignore_roi_bmp=ignore_roi)
     if out is not None:
         _check_report_dir(report_dir, overwrite)
-    source_options = dict(start=start, stop=stop, step=step, scale=scale, width=width)
+    source_options = dict(start=start, stop=stop, step=step, scale=scale, width=width, fps=fps)
 
     report = ComparisonReport(
         input=input_text, methods=names, report_dir=str(out) if out else None,

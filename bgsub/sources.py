@@ -403,7 +403,8 @@ def output_size(width: int, height: int, *, scale: Optional[float] = None,
 
 
 def open_source(path: PathLike, *, start: int = 0, stop: Optional[int] = None, step: int = 1,
-                scale: Optional[float] = None, width: Optional[int] = None) -> FrameSource:
+                scale: Optional[float] = None, width: Optional[int] = None,
+                fps: Optional[float] = None) -> FrameSource:
     """Open a video file, an image folder or a glob pattern as a stream of frames.
 
     Parameters
@@ -418,6 +419,10 @@ def open_source(path: PathLike, *, start: int = 0, stop: Optional[int] = None, s
         Resize every frame by this factor (``cv2.INTER_AREA`` when shrinking).
     width : int, optional
         Resize every frame to this width, keeping the aspect ratio. Exclusive with ``scale``.
+    fps : float, optional
+        The input's frame rate, in place of what it states (image folders state none: videos
+        written from them play at :data:`DEFAULT_FPS` otherwise). ``info.fps`` is this divided
+        by ``step``.
 
     Returns
     -------
@@ -432,6 +437,10 @@ def open_source(path: PathLike, *, start: int = 0, stop: Optional[int] = None, s
         reported when iteration reaches them.
     """
     _check_range(start, stop, step)
+    if fps is not None and not (isinstance(fps, (int, float)) and math.isfinite(fps)
+                                and 0 < fps <= 1000):
+        raise InputError(f"the frame rate must be a number of frames per second in (0, 1000], "
+                         f"not {fps!r}")
     text = given_path(path, what="input", hint="a video file, an image folder or a glob pattern")
     location = Path(text)
     if location.is_dir():
@@ -463,6 +472,8 @@ def open_source(path: PathLike, *, start: int = 0, stop: Optional[int] = None, s
     count = None
     if total is not None:
         count = len(range(start, total if stop is None else min(stop, total), step))
-    info = VideoInfo(path=text, width=out_w, height=out_h, fps=backend.fps / step,
-                     fps_is_default=backend.fps_is_default, frame_count=count, kind=backend.kind)
+    rate = backend.fps if fps is None else float(fps)
+    info = VideoInfo(path=text, width=out_w, height=out_h, fps=rate / step,
+                     fps_is_default=backend.fps_is_default and fps is None, frame_count=count,
+                     kind=backend.kind)
     return FrameSource(backend, info, start=start, stop=stop, step=step)

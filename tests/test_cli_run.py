@@ -529,3 +529,16 @@ def test_masks_of_part_of_a_folder_are_numbered_from_1(tmp_path, capsys):
                    "_test_diff", "--start", "1")
     assert code == 0
     assert sorted(os.listdir(tmp_path / "m")) == ["bin000002.png", "bin000003.png"]
+
+
+def test_fps_sets_the_rate_of_a_mask_video_from_a_folder(tmp_path, capsys):
+    folder = tmp_path / "seq"
+    folder.mkdir()
+    rng = np.random.default_rng(0)
+    for k in range(3):
+        cv2.imwrite(str(folder / f"in{k + 1:06d}.png"),
+                    rng.integers(0, 255, (32, 48, 3), dtype=np.uint8))
+    code, err = _run(capsys, folder, "-o", tmp_path / "m.mkv", "-m", "framediff", "--fps", "12")
+    assert code == 0 and "states no frame rate" not in err
+    cap = cv2.VideoCapture(str(tmp_path / "m.mkv"))
+    assert cap.get(cv2.CAP_PROP_FPS) == pytest.approx(12.0)

@@ -354,3 +354,20 @@ def test_folders_the_frames_are_listed_from(tmp_path):
                                        (tmp_path / "other" / "input").resolve()}
     with open_source(_write_video(tmp_path / "c.mkv", _frames(2))) as source:
         assert source.folders == ()
+
+
+@pytest.mark.parametrize("step, want", [(1, 30.0), (3, 10.0)])
+def test_a_given_frame_rate_replaces_the_default_of_a_folder(tmp_path, step, want):
+    folder = tmp_path / "seq"
+    folder.mkdir()
+    for k, frame in enumerate(_frames(6)):
+        cv2.imwrite(str(folder / f"in{k + 1:06d}.png"), frame)
+    with open_source(folder, fps=30, step=step) as source:
+        assert source.info.fps == pytest.approx(want) and not source.info.fps_is_default
+
+
+@pytest.mark.parametrize("fps", [0, -5, float("nan"), float("inf"), 5000])
+def test_an_impossible_frame_rate_is_refused(tmp_path, fps):
+    video = _write_video(tmp_path / "clip.mkv", _frames(3))
+    with pytest.raises(InputError, match="frame rate must be a number of frames per second"):
+        open_source(video, fps=fps)

@@ -26,12 +26,15 @@ def add_source_options(parser: argparse.ArgumentParser) -> None:
                       help="resize frames by this factor, e.g. 0.5")
     size.add_argument("--width", type=int, default=None, metavar="PX",
                       help="resize frames to this width, keeping the aspect ratio")
+    group.add_argument("--fps", type=float, default=None, metavar="F",
+                       help="the input's frame rate, for the videos written from it (default: "
+                            "what the input states; 25 for image folders)")
 
 
 def source_kwargs(args: argparse.Namespace) -> dict:
     """The keyword arguments of :func:`open_source` taken from :func:`add_source_options`."""
     return dict(start=args.start, stop=args.stop, step=args.step, scale=args.scale,
-                width=args.width)
+                width=args.width, fps=args.fps)
 
 
 def add_output_options(parser: argparse.ArgumentParser) -> None:

@@ -122,7 +122,8 @@ def _summary(stats: RunStats, method: str, outputs: List[str]) -> str:
 def _fps_notice(info: VideoInfo, args: argparse.Namespace) -> Optional[str]:
     writes_video = is_video_path(args.output) or args.vis or args.flow_vis
     if info.fps_is_default and writes_video:
-        return f"{args.input} states no frame rate; videos are written at {info.fps:g} fps"
+        return (f"{args.input} states no frame rate; videos are written at {info.fps:g} fps "
+                "(--fps sets it)")
     return None
 
 

@@ -542,3 +542,14 @@ def test_fps_sets_the_rate_of_a_mask_video_from_a_folder(tmp_path, capsys):
     assert code == 0 and "states no frame rate" not in err
     cap = cv2.VideoCapture(str(tmp_path / "m.mkv"))
     assert cap.get(cv2.CAP_PROP_FPS) == pytest.approx(12.0)
+
+
+def test_importing_the_cli_loads_no_numpy():
+    """`bgsub` reaches main()'s Ctrl-C handling before the heavy imports (numpy, OpenCV)."""
+    import subprocess
+    import sys
+
+    code = "import sys, bgsub, bgsub.cli; print('numpy' in sys.modules, 'cv2' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert out.split() == ["False", "False"]

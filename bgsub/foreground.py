@@ -317,6 +317,10 @@ def still_in_image_map(
         Consecutive gray frames.
     matrix : (3, 3) float64
         The camera motion (previous -> current).
+    window : int
+        Side of the square over which the absolute differences are averaged (px).
+    centre, width : float
+        The soft step: ``1 / (1 + exp(-(s - centre) / width))``, 0.5 at ``s = centre``.
 
     Returns
     -------

@@ -41,8 +41,12 @@ examples:
   bgsub train --data dots-translation --max-shift 3 -o dots3.npz
         shifts up to 3 px: 400 epochs, curriculum 100:1,200:2 and a linear lr decay by default
   bgsub train --data dots-rotation -o rot.npz
-  bgsub train --data shifted-images --epochs 200 -o natural.npz
+        the paper's rotation model, +-30 degrees
+  bgsub train --data shifted-images --max-shift 4 --curriculum 50:1,100:2,150:3 \\
+      --epochs 600 --lr-schedule linear -o natural.npz
+        the shipped `natural` model (~7 min; photographs need pip install -e '.[train]')
   bgsub train --data clip1.mp4 clip2.mp4 --video-scale 0.5 -o mine.npz
+        your own footage, unsupervised
 """
 
 

@@ -99,7 +99,7 @@ class OpenCVSubtractor(Engine):
         elif 0.0 <= rate < self.min_rate:
             rate = self.min_rate
         raw = self.subtractor.apply(image, learningRate=rate)
-        self._shape = image.shape[:2]
+        self._shape = image.shape
         return _binarize_into(raw, fgmask)
 
     def get_background_image(self) -> Optional[np.ndarray]:
@@ -299,7 +299,7 @@ class FrameDifference(Engine):
     ) -> np.ndarray:
         """Next frame -> ``(H, W) uint8`` 0/255 mask; see :meth:`bgsub.engines.Engine.apply`."""
         previous = self._previous_gray
-        image = check_frame(image, shape=None if previous is None else previous.shape)
+        image = check_frame(image, shape=None if previous is None else self._previous_image.shape)
         rate = check_learning_rate(learning_rate, default=self.learning_rate)
         check_fgmask(fgmask, image.shape[:2])
         gray = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY) if image.ndim == 3 else image

@@ -856,6 +856,10 @@ def _run_job(job: _Job, methods: Sequence[str], params: Mapping[str, Mapping[str
     if n_frames == 0:
         raise InputError(f"{job.frames}: no frames in the requested range")
 
+    short = source.truncation()  # decoding ended well before the end the video declares
+    if short:
+        notes.append(short)
+        warnings.append(short)
     if scoring is not None:
         # `number` is now the last frame read. Frames the source promised but never delivered
         # (a video that states the wrong length, or none) are not scored, like those past an

@@ -58,9 +58,10 @@ def check_frame(image: Any, *, shape: Optional[tuple] = None) -> np.ndarray:
     Parameters
     ----------
     image : (H, W), (H, W, 1) or (H, W, 3) uint8 array
-    shape : (H, W), optional
-        The size of the stream's earlier frames: a frame of another size is refused (an
-        engine's model is of one size; a new stream needs a new engine).
+    shape : (H, W) or (H, W, 3), optional
+        The shape of the stream's earlier frames as this function returned them: a frame of
+        another size, or gray after colour (or colour after gray), is refused (an engine's
+        model is of one size and kind; a new stream needs a new engine).
 
     Returns
     -------
@@ -74,19 +75,25 @@ def check_frame(image: Any, *, shape: Optional[tuple] = None) -> np.ndarray:
             f"engine input must be (H, W) gray or (H, W, 3) BGR, not shape {tuple(image.shape)}")
     if image.shape[0] == 0 or image.shape[1] == 0:
         raise InputError(f"engine input is empty (shape {image.shape})")
-    if shape is not None and image.shape[:2] != tuple(shape):
-        raise InputError(f"frame size changed from {shape[1]}x{shape[0]} to "
-                         f"{image.shape[1]}x{image.shape[0]} (a new stream needs a new engine)")
-    return image[:, :, 0] if image.ndim == 3 and image.shape[2] == 1 else image
+    if image.ndim == 3 and image.shape[2] == 1:
+        image = image[:, :, 0]
+    if shape is not None and image.shape != tuple(shape):
+        raise InputError(f"frames changed from {_describe(tuple(shape))} to "
+                         f"{_describe(image.shape)} (a new stream needs a new engine)")
+    return image
+
+
+def _describe(shape: tuple) -> str:
+    """``"320x240 BGR"`` or ``"320x240 gray"`` for a frame shape."""
+    return f"{shape[1]}x{shape[0]} {'gray' if len(shape) == 2 else 'BGR'}"
 
 
 def check_learning_rate(learning_rate: Any, *, default: float = -1.0) -> float:
     """``learning_rate`` as a float in [0, 1], or negative (automatic); a negative one is
     replaced by ``default``, the engine's ``learning_rate`` parameter."""
-    try:
-        rate = float(learning_rate)
-    except (TypeError, ValueError):
-        raise InputError(f"learning_rate must be a number, not {learning_rate!r}") from None
+    if isinstance(learning_rate, (bool, np.bool_)) or not isinstance(learning_rate, numbers.Real):
+        raise InputError(f"learning_rate must be a number, not {learning_rate!r}")
+    rate = float(learning_rate)
     if not np.isfinite(rate) or rate > 1.0:
         raise InputError(f"learning_rate must be in [0, 1] or negative (automatic), not {rate}")
     return float(default) if rate < 0 else rate
@@ -157,7 +164,8 @@ class Engine(ABC):
             return image
         if (not isinstance(backgroundImage, np.ndarray) or backgroundImage.shape != image.shape
                 or backgroundImage.dtype != image.dtype):
-            got = getattr(backgroundImage, "shape", type(backgroundImage).__name__)
+            got = (f"{backgroundImage.dtype} {backgroundImage.shape}"
+                   if isinstance(backgroundImage, np.ndarray) else type(backgroundImage).__name__)
             raise InputError(f"backgroundImage must be a {image.shape} {image.dtype} array, "
                              f"not {got}")
         backgroundImage[...] = image
@@ -254,8 +262,8 @@ class Param:
 #: The ``learning_rate`` parameter every engine registers: the rate ``apply()`` uses when its
 #: caller gives none (``bgsub run --param learning_rate=0.01``, as MOG2 users set it).
 LEARNING_RATE = Param(-1.0, "background learning rate of every frame, as OpenCV's apply() takes "
-                            "it: -1 = the engine's own, 0 = never update the model, 1 = restart "
-                            "it every frame", low=-1.0, high=1.0)
+                            "it: negative = the engine's own, 0 = never update the model, "
+                            "1 = restart it every frame", high=1.0)
 
 
 @dataclass(frozen=True)
@@ -332,8 +340,8 @@ def get_engine_spec(name: str) -> EngineSpec:
 
 
 def create_engine(name: Optional[str] = None, **params: Any) -> Engine:
-    """Build the engine ``name`` (default: :func:`default_method`) with ``params``."""
-    return get_engine_spec(name or default_method()).create(**params)
+    """Build the engine ``name`` (``None``: :func:`default_method`) with ``params``."""
+    return get_engine_spec(default_method() if name is None else name).create(**params)
 
 
 def parse_params(name: str, pairs: Iterable[str]) -> Dict[str, Any]:

@@ -582,6 +582,18 @@ def _mask_sets(folder: Path) -> List[str]:
     return found
 
 
+def _methods_held(folders: Sequence[Path]) -> str:
+    """``"; it holds the methods grbm, mog2"``: the methods whose mask sets the `bgsub compare`
+    report ``folders`` hold, or ``""`` when they hold none."""
+    names: Dict[str, None] = {}
+    for folder in folders:
+        if folder.is_dir():
+            for entry in _mask_sets(folder):
+                names[os.path.splitext(entry.rstrip("/"))[0] if not entry.endswith("/")
+                      else entry.rstrip("/")] = None
+    return f"; it holds the methods {', '.join(names)}" if names else ""
+
+
 def _no_masks_message(folder: Path, gt: Optional[Path]) -> str:
     """Why ``folder`` is no prediction, saying what it holds instead."""
     text = f"no binNNNNNN.png masks in {folder}"
@@ -1040,6 +1052,11 @@ def evaluate_dataset(
     rels = [seq.relative_to(root) for seq in sequences]
     preds = {rel: find_prediction(pred_root, rel, method) for rel in rels}
     absent = [rel.as_posix() for rel, p in preds.items() if p is None]
+    if method is not None and len(absent) == len(rels):
+        # A misspelt method, not missing sequences: --allow-missing would score nothing.
+        raise InputError(f"no masks of method {method!r} in {pred_root} for any of its "
+                         f"{len(rels)} sequences"
+                         f"{_methods_held([Path(pred_root) / rel for rel in rels])}")
     if absent and not allow_missing:
         listed = ", ".join(absent[:_MAX_LISTED]) + (", ..." if len(absent) > _MAX_LISTED else "")
         of = f" of method {method!r}" if method is not None else ""
@@ -1080,7 +1097,8 @@ def evaluate(pred: PathLike, gt: PathLike, *, method: Optional[str] = None,
             found = find_prediction(pred, method)
             if found is None:
                 raise InputError(f"no masks of method {method!r} in {pred} (neither "
-                                 f"{method}/ nor {method}.mkv or another video)")
+                                 f"{method}/ nor {method}.mkv or another video)"
+                                 f"{_methods_held([Path(pred)])}")
             pred = found
         return DatasetResult.from_sequences([evaluate_sequence(pred, gt, **options)])
     return evaluate_dataset(pred, gt, method=method, **options)

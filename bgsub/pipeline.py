@@ -280,7 +280,7 @@ class MovingCameraEngine(Engine):
         self._last_flow: Any = None  # the front end's last dense readout, if any (debug views)
         self._last_frame: Optional[np.ndarray] = None
         self._last_mask: Optional[np.ndarray] = None
-        self._in_shape: Optional[tuple] = None
+        self._in_shape: Optional[tuple] = None  # the input frames' shape, (H, W) or (H, W, 3)
 
     # ------------------------------------------------------------------ sizes
 
@@ -300,7 +300,7 @@ class MovingCameraEngine(Engine):
         return cv2.resize(image, (ww, wh), interpolation=cv2.INTER_AREA)
 
     def _to_input(self, mask: np.ndarray) -> np.ndarray:
-        h, w = self._in_shape
+        h, w = self._in_shape[:2]
         if mask.shape == (h, w):
             return mask
         up = cv2.resize(mask, (w, h), interpolation=cv2.INTER_LINEAR)
@@ -340,7 +340,7 @@ class MovingCameraEngine(Engine):
         image = check_frame(image, shape=self._in_shape)
         rate = check_learning_rate(learning_rate, default=self.learning_rate)
         check_fgmask(fgmask, image.shape[:2])
-        self._in_shape = image.shape[:2]
+        self._in_shape = image.shape
         with limited_threads(self.threads):
             work = self._to_work(image)
             if work is image:
@@ -549,7 +549,7 @@ class MovingCameraEngine(Engine):
         return None
 
     def _to_input_image(self, img: np.ndarray) -> np.ndarray:
-        h, w = self._in_shape
+        h, w = self._in_shape[:2]
         if img.shape[:2] == (h, w):
             return img
         return cv2.resize(img, (w, h), interpolation=cv2.INTER_LINEAR)

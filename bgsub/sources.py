@@ -175,14 +175,13 @@ class _VideoBackend:
             # nearby key frame in some containers, and masks must match frame numbers exactly.
             for index in range(start):
                 if not capture.grab():
-                    raise InputError(
-                        f"{self.path}: start frame {start} is past the end of the video "
-                        f"({index} frames)"
-                    )
+                    raise self._past_the_end(start, index)
             index = start
             while stop is None or index < stop:
                 ok, frame = capture.read()
                 if not ok or frame is None:
+                    if index == start:  # not one frame from the start on: decoded to the end
+                        raise self._past_the_end(start, index)
                     self.decoding_ended_at = index
                     return
                 yield index, frame
@@ -193,6 +192,13 @@ class _VideoBackend:
                 index += step
         finally:
             capture.release()
+
+
+    def _past_the_end(self, start: int, decoded: int) -> InputError:
+        declared = (f"; its header declares {self.total}, so the file may be truncated or "
+                    "damaged" if self.total is not None and self.total > decoded else "")
+        return InputError(f"{self.path}: start frame {start} is past the end of the video "
+                          f"({decoded} frames decode{declared})")
 
 
 class _ImageListBackend:
@@ -320,6 +326,12 @@ class FrameSource:
     def __repr__(self) -> str:
         return f"FrameSource({self.info})"
 
+    def file_name(self, index: int) -> Optional[str]:
+        """The name of the image file of frame ``index`` (0-based, in the full input), or
+        ``None`` for a video."""
+        files = getattr(self._backend, "files", None)
+        return None if files is None else Path(files[index]).name
+
     @property
     def folders(self) -> Tuple[Path, ...]:
         """The folders the frames are listed from, resolved: an image folder (a CDnet sequence's
@@ -438,9 +450,10 @@ def open_source(path: PathLike, *, start: int = 0, stop: Optional[int] = None, s
     """
     _check_range(start, stop, step)
     if fps is not None and not (isinstance(fps, (int, float)) and math.isfinite(fps)
-                                and 0 < fps <= 1000):
-        raise InputError(f"the frame rate must be a number of frames per second in (0, 1000], "
-                         f"not {fps!r}")
+                                and 0.01 <= fps <= 1000):
+        # (OpenCV's video writers refuse rates near 0: 0.001 fails, 0.002 works.)
+        raise InputError(f"the frame rate must be a number of frames per second from 0.01 to "
+                         f"1000, not {fps!r}")
     text = given_path(path, what="input", hint="a video file, an image folder or a glob pattern")
     location = Path(text)
     if location.is_dir():

@@ -182,7 +182,7 @@ def test_mask_video_from_a_later_start_notes_the_eval_flags(tmp_path, clip, caps
     lines = err.strip().splitlines()
     assert len(lines) == 2 and len(_video_frames(tmp_path / "m.mkv")) == 4
     assert f"`bgsub eval {tmp_path / 'm.mkv'} GROUNDTRUTH --start 4 --step 3 --stop 16`" \
-        in lines[0]
+        in lines[1]  # after the summary: once the masks are written
 
 
 @pytest.mark.parametrize("output, args", [
@@ -553,3 +553,23 @@ def test_importing_the_cli_loads_no_numpy():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout
     assert out.split() == ["False", "False"]
+
+
+@pytest.mark.parametrize("first, start, noted", [
+    (20, 0, True),   # a folder holding part of a sequence: in000020.jpg's mask is bin000001
+    (1, 0, False),   # a whole CDnet input/ folder: the numbers agree
+    (1, 4, False),   # ... also with --start
+    (0, 0, False),   # names counted from 0
+])
+def test_a_note_when_mask_numbers_differ_from_the_file_names(tmp_path, capsys, first, start,
+                                                             noted):
+    folder = tmp_path / "part"
+    folder.mkdir()
+    for k, frame in enumerate(_clip_frames(6)):
+        cv2.imwrite(str(folder / f"in{first + k:06d}.png"), frame)
+    code, err = _run(capsys, folder, "-o", tmp_path / "m", "-m", "_test_diff",
+                     "--start", str(start))
+    assert code == 0
+    assert ("masks are numbered by position" in err) == noted
+    if noted:
+        assert "the mask of in000020.png is number 1 (bin000001.png), not 20" in err

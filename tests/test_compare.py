@@ -564,3 +564,19 @@ def test_dataset_sequences_with_short_inputs_warn(tmp_path: Path) -> None:
         f"ground-truth frame to score (5; 4 frames, 5-8, in {root / 'famA_late'})"]
     assert [(r.name, r.eval_frames) for r in report.rows] == [
         ("famA_cut", 3), ("famA_late", 0), ("famB_whole", 8)]
+
+
+def test_a_truncated_video_is_reported(tmp_path: Path) -> None:
+    """As `bgsub run` warns: decoding ends well before the frame count the header declares."""
+    rng = np.random.default_rng(0)
+    whole = tmp_path / "whole.avi"
+    writer = cv2.VideoWriter(str(whole), cv2.VideoWriter_fourcc(*"FFV1"), 25, (32, 24))
+    for _ in range(40):
+        writer.write(rng.integers(0, 255, (24, 32, 3), dtype=np.uint8))
+    writer.release()
+    cut = tmp_path / "cut.avi"
+    cut.write_bytes(whole.read_bytes()[: whole.stat().st_size // 2])
+    report = compare_methods(cut, methods=["framediff"])
+    assert any("ended after" in w and "of the 40 frames its header declares" in w
+               for w in report.warnings)
+    assert not compare_methods(whole, methods=["framediff"]).warnings

@@ -35,7 +35,7 @@ def test_a_refused_fgmask_leaves_the_engine_as_it_was(name):
 
 
 @pytest.mark.parametrize("name", ENGINES)
-@pytest.mark.parametrize("rate", ["fast", None, float("nan"), 1.5])
+@pytest.mark.parametrize("rate", ["fast", None, True, float("nan"), 1.5])
 def test_a_bad_learning_rate_is_an_input_error(name, rate):
     with pytest.raises(InputError, match="learning_rate must be"):
         create_engine(name).apply(_frames(1)[0], learning_rate=rate)
@@ -45,8 +45,21 @@ def test_a_bad_learning_rate_is_an_input_error(name, rate):
 def test_a_frame_of_another_size_is_refused(name):
     engine = create_engine(name)
     engine.apply(_frames(1)[0])
-    with pytest.raises(InputError, match="frame size changed from 64x48 to 64x47"):
+    with pytest.raises(InputError, match="frames changed from 64x48 BGR to 64x47 BGR"):
         engine.apply(np.zeros((H - 1, W, 3), np.uint8))
+
+
+@pytest.mark.parametrize("name", ENGINES)
+def test_gray_after_colour_and_colour_after_gray_are_refused(name):
+    colour = _frames(2)
+    gray = [f[:, :, 0].copy() for f in colour]
+    for first, second, words in ((colour, gray, "64x48 BGR to 64x48 gray"),
+                                 (gray, colour, "64x48 gray to 64x48 BGR")):
+        engine = create_engine(name)
+        engine.apply(first[0])
+        with pytest.raises(InputError, match=f"frames changed from {words}"):
+            engine.apply(second[1])
+        engine.apply(first[1])  # the refused frame changed nothing
 
 
 @pytest.mark.parametrize("name", ENGINES)
@@ -77,6 +90,11 @@ def test_apply_documents_the_shared_contract(name):
 def test_a_parameter_of_the_wrong_type_is_an_input_error(name, params, words):
     with pytest.raises(InputError, match=words):
         create_engine(name, **params)
+
+
+def test_an_empty_engine_name_is_refused():
+    with pytest.raises(InputError, match="unknown method ''"):
+        create_engine("")
 
 
 def test_numpy_numbers_and_integers_for_numbers_are_accepted():

@@ -568,6 +568,7 @@ def test_method_picks_one_mask_set_of_a_compare_report(tmp_path):
 
 @pytest.mark.parametrize("method, pred, words", [
     ("knn", "report", "no masks of method 'knn' in"),
+    ("knn", "report", "it holds the methods empty, good"),
     ("", "report", "method (--method) is empty"),
     ("a/b", "report", "not a path"),
     ("good", "video", "is not a folder"),
@@ -579,7 +580,21 @@ def test_method_refusals(tmp_path, method, pred, words):
         evaluate(path, gt, method=method)
 
 
-def test_method_missing_from_a_dataset_sequence(tmp_path):
+@pytest.mark.parametrize("allow_missing", [False, True])
+def test_a_method_no_sequence_has_is_refused_naming_those_there(tmp_path, allow_missing):
+    """A misspelt method: --allow-missing would only score every sequence as empty."""
     report, gt = _compare_report(tmp_path)
-    with pytest.raises(InputError, match=r"no prediction of method 'knn' in .* for 1 of 1 "):
-        evaluate(report.parent, gt.parent, method="knn")
+    with pytest.raises(InputError, match=r"no masks of method 'knn' in .* for any of its 1 "
+                                         r"sequences; it holds the methods empty, good"):
+        evaluate(report.parent, gt.parent, method="knn", allow_missing=allow_missing)
+
+
+def test_a_method_some_sequences_lack_can_be_counted_as_background(tmp_path):
+    report, gt = _compare_report(tmp_path)
+    other = write_sequence(gt.parent / "static_s0", {1: np.zeros((16, 16), np.uint8)})
+    write_bins(report.parent / other.name / "empty", {1: np.zeros((16, 16), np.uint8)})
+    with pytest.raises(InputError, match=r"no prediction of method 'good' in .* for 1 of 2 "
+                                         r"sequences .*static_s0.*--allow-missing"):
+        evaluate(report.parent, gt.parent, method="good")
+    result = evaluate(report.parent, gt.parent, method="good", allow_missing=True)
+    assert len(result.sequences) == 2

@@ -329,6 +329,18 @@ def test_a_video_that_ends_before_its_declared_length_says_so(tmp_path):
                                        "header declares (truncated or damaged?)")
 
 
+def test_a_start_at_the_decodable_end_of_a_cut_video_is_past_its_end(tmp_path):
+    cut = _truncated(tmp_path / "cut.mkv", 30)
+    with open_source(cut) as source:
+        decoded = len(list(source))
+    for start in (decoded, decoded + 3):  # both in the range the header declares
+        with open_source(cut, start=start) as source:
+            with pytest.raises(InputError, match=f"start frame {start} is past the end of the "
+                                                 f"video .{decoded} frames decode; its header "
+                                                 "declares 30"):
+                list(source)
+
+
 @pytest.mark.parametrize("kwargs", [dict(stop=5), dict(start=2, stop=8, step=3)])
 def test_no_truncation_when_the_range_stops_before_the_damage(tmp_path, kwargs):
     with open_source(_truncated(tmp_path / "cut.mkv", 30), **kwargs) as source:
@@ -366,7 +378,7 @@ def test_a_given_frame_rate_replaces_the_default_of_a_folder(tmp_path, step, wan
         assert source.info.fps == pytest.approx(want) and not source.info.fps_is_default
 
 
-@pytest.mark.parametrize("fps", [0, -5, float("nan"), float("inf"), 5000])
+@pytest.mark.parametrize("fps", [0, 0.001, -5, float("nan"), float("inf"), 5000])
 def test_an_impossible_frame_rate_is_refused(tmp_path, fps):
     video = _write_video(tmp_path / "clip.mkv", _frames(3))
     with pytest.raises(InputError, match="frame rate must be a number of frames per second"):

@@ -8,8 +8,9 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import re
 import shlex
-from typing import List, Optional
+from typing import Any, List, Optional
 
 from bgsub import engines
 from bgsub.cli import common
@@ -127,6 +128,18 @@ def _fps_notice(info: VideoInfo, args: argparse.Namespace) -> Optional[str]:
     return None
 
 
+def _numbering_notice(source: Any, args: argparse.Namespace) -> Optional[str]:
+    """Masks are numbered by position in the input: say so when the first image read carries
+    another number in its name (a folder or glob of part of a sequence)."""
+    name = source.file_name(args.start)
+    found = re.search(r"(\d+)\D*$", name or "")
+    if found is None or int(found.group(1)) <= args.start + 1:  # (0-based names: no news)
+        return None
+    return (f"masks are numbered by position in the input: the mask of {name} is number "
+            f"{args.start + 1} (bin{args.start + 1:06d}.png), not {int(found.group(1))}; give "
+            f"the whole folder with --start to keep the file names' numbers")
+
+
 def _eval_notice(args: argparse.Namespace) -> Optional[str]:
     """How to score a mask video that does not hold every input frame from the first.
 
@@ -153,7 +166,7 @@ def run(args: argparse.Namespace) -> int:
     # What `bgsub analogy` and `bgsub flow` say of a random-dot model on natural images.
     common.warn_if_binary_model_on_source(getattr(engine, "model", None), source,
                                           what=args.input)
-    for notice in (_fps_notice(info, args), _eval_notice(args)):
+    for notice in (_fps_notice(info, args), _numbering_notice(source, args)):
         if notice:
             common.note(notice, quiet=args.quiet)
 
@@ -177,4 +190,7 @@ def run(args: argparse.Namespace) -> int:
         common.warn(short)
     common.note(_summary(stats, method, [p for p in (args.output, args.vis, args.flow_vis) if p]),
                 quiet=args.quiet)
+    eval_notice = _eval_notice(args)  # how to score what was written, once it is
+    if eval_notice and stats.frames:
+        common.note(eval_notice, quiet=args.quiet)
     return 0

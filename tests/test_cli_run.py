@@ -338,14 +338,19 @@ def test_subprocess_run_with_mog2(tmp_path, clip):
 
 
 _SLOW_RUN = """
-import sys, time
+import os, sys, time
 import numpy as np
 from bgsub.cli import main
 from bgsub.engines import Engine, register_engine
 
 @register_engine("_test_slow", "test: 0.1 s per frame")
 class Slow(Engine):
+    calls = 0
+
     def apply(self, image, fgmask=None, learning_rate=-1.0):
+        Slow.calls += 1
+        if Slow.calls == 3:  # two masks are written: tell the test it may interrupt
+            open(os.environ["BGSUB_TEST_MARKER"], "w").close()
         time.sleep(0.1)
         return np.zeros(image.shape[:2], np.uint8)
 
@@ -355,14 +360,18 @@ raise SystemExit(main(["run", *sys.argv[1:], "-m", "_test_slow"]))
 
 def test_real_sigint_leaves_valid_partial_output(tmp_path, clip):
     out = tmp_path / "m.mkv"
-    env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+    marker = tmp_path / "two-written"
+    env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1",
+               BGSUB_TEST_MARKER=str(marker))
     child = subprocess.Popen([sys.executable, "-c", _SLOW_RUN, str(clip), "-o", str(out)],
                              stderr=subprocess.PIPE, text=True, env=env)
     partial = tmp_path / ".m.partial.mkv"
     deadline = time.monotonic() + 60
-    while not partial.exists() and child.poll() is None and time.monotonic() < deadline:
+    # Interrupt mid-run, however slow the machine: once two masks are written (the whole run
+    # would take N * 0.1 s = 2 s).
+    while not marker.exists() and child.poll() is None and time.monotonic() < deadline:
         time.sleep(0.01)
-    time.sleep(0.3)  # a few frames in; the whole run would take N * 0.1 s = 2 s
+    assert partial.exists()
     child.send_signal(signal.SIGINT)
     _, err = child.communicate(timeout=60)
     assert child.returncode == 130, err

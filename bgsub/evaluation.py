@@ -928,6 +928,12 @@ def evaluate_sequence(
                 # `bgsub compare` does; nearest neighbour keeps them 0/255.
                 scaled_from = scaled_from or _size(mask)
                 mask = cv2.resize(mask, (gt.width, gt.height), interpolation=cv2.INTER_NEAREST)
+            if int(mask.max()) == 1:
+                # 0/1 masks (mask.astype(np.uint8)) would score as all background: a slip, not
+                # a prediction.
+                raise InputError(
+                    f"prediction {reader.label} ({reader.frame_name(number)}) holds 0/1 values; "
+                    "masks are 0/255 (foreground above 127): multiply by 255, or give bool masks")
             try:
                 counts += count_frame(mask, labels, gt.roi)
             except InputError as err:

@@ -851,7 +851,9 @@ def dense_from_patches(
     Every valid patch votes for its displacement with weight ``confidence * texture``; a pixel
     takes the bilinear, weight-normalised average of the votes of the four grid patches around
     it, which is a smooth robust blend where patches agree and follows the better-supported
-    patch where they do not. Pixels no valid patch covers are NaN.
+    patch where they do not. Where those four carry no weight (a pixel on the centre line of an
+    invalid patch) but other valid patches cover the pixel, it takes the weighted average of
+    the patches that cover it. Pixels no valid patch covers are NaN.
 
     Parameters
     ----------
@@ -887,4 +889,25 @@ def dense_from_patches(
     ok[:, int(cover_x):] = False
     ok[int(cover_y):, :] = False
     out[ok] = up[ok, :2] / den[ok, None]
+    _fill_from_covering_patches(out, flow, ok, patch_size, min_weight)
     return out
+
+
+def _fill_from_covering_patches(out: np.ndarray, flow: FlowEstimate, ok: np.ndarray,
+                                patch_size: int, min_weight: float) -> None:
+    """Give the pixels of ``out`` ((H, W, 2), NaN where not ``ok``) that valid patches cover
+    the weighted average of those patches' votes, each vote spread evenly over its patch."""
+    h, w = out.shape[:2]
+    half = (patch_size - 1) // 2
+    valid = flow.weights > 0
+    cx, cy = np.rint(flow.centres[valid]).astype(np.intp).T
+    inside = (cx >= 0) & (cx < w) & (cy >= 0) & (cy < h)
+    weights = flow.weights[valid][inside].astype(np.float32)
+    splat = np.zeros((h, w, 3), np.float32)
+    splat[cy[inside], cx[inside], :2] = flow.disp[valid][inside] * weights[:, None]
+    splat[cy[inside], cx[inside], 2] = weights
+    # A box of the patch's side around each centre: the pixels that patch covers.
+    spread = cv2.boxFilter(splat, -1, (patch_size, patch_size), anchor=(half, half),
+                           normalize=False, borderType=cv2.BORDER_CONSTANT)
+    fill = ~ok & (spread[:, :, 2] > min_weight)
+    out[fill] = spread[fill, :2] / spread[fill, 2:3]

@@ -333,6 +333,18 @@ def test_python_masks_input(hand_case):
     assert evaluate_sequence(masks, gt).counts == HAND_COUNTS
 
 
+def test_zero_one_masks_are_refused_not_scored_as_background(hand_case, tmp_path):
+    _, gt = hand_case
+    slip = {2: (PRED2 > 127).astype(np.uint8), 3: (PRED3 > 127).astype(np.uint8)}
+    with pytest.raises(InputError, match=r"holds 0/1 values; masks are 0/255"):
+        evaluate_sequence(slip, gt)
+    write_bins(tmp_path / "pngs", slip)  # the same slip written to PNGs
+    with pytest.raises(InputError, match=r"bin000002.png\) holds 0/1 values"):
+        evaluate_sequence(tmp_path / "pngs", gt)
+    as_bool = {n: m.astype(bool) for n, m in slip.items()}
+    assert evaluate_sequence(as_bool, gt).counts == HAND_COUNTS
+
+
 def test_categories():
     assert category_of("BMS26_cars1") == "BMS26"
     assert category_of("static_s1") == "static"

@@ -5,12 +5,14 @@ The coarse-to-fine mechanics are tested with an exact block-matching oracle in t
 shipped translation model.
 """
 
+import dataclasses
+
 import cv2
 import numpy as np
 import pytest
 
 from bgsub.errors import ModelError
-from bgsub.flowfield import estimate_flow
+from bgsub.flowfield import FlowEstimate, dense_from_patches, estimate_flow
 
 
 class OracleMatcher:
@@ -84,6 +86,33 @@ def test_dense_field_full_size_and_nan_where_unknown():
     np.testing.assert_allclose(d[30:60, 30:90].reshape(-1, 2).mean(0), [-2, 1], atol=0.3)
     # The last column of patches ends before the frame's right edge here: unknown, not made up.
     assert not known[:, -1].any()
+
+
+@pytest.mark.parametrize("stride", [3, 6])
+def test_pixels_an_invalid_patch_shares_with_valid_ones_get_their_flow(stride):
+    """No 1-px unknown lines where an invalid patch sits among valid ones that cover it."""
+    rows, cols, p = 5, 7, 13
+    half = (p - 1) // 2
+    ys, xs = np.mgrid[0:rows, 0:cols]
+    centres = np.stack([half + stride * xs.ravel(), half + stride * ys.ravel()], 1)
+    n = rows * cols
+    valid = np.ones(n, bool)
+    valid[2 * cols + 3] = False  # the middle patch
+    flow = FlowEstimate(
+        centres=centres.astype(np.float32), disp=np.tile([1.5, -0.5], (n, 1)).astype(np.float32),
+        confidence=np.ones(n, np.float32), texture=np.ones(n, np.float32), valid=valid,
+        grid_shape=(rows, cols), stride=stride, prewarp=np.eye(3),
+        residual=np.zeros((n, 2), np.float32))
+    h, w = half * 2 + stride * (rows - 1) + 1, half * 2 + stride * (cols - 1) + 1
+    d = dense_from_patches(flow, shape=(h, w), patch_size=p)
+    cy, cx = centres[2 * cols + 3][::-1]
+    np.testing.assert_allclose(d[cy, cx], [1.5, -0.5])  # its centre: covered by its neighbours
+    assert np.isfinite(d).all()
+    # A patch whose neighbours are all invalid too leaves its centre unknown.
+    lonely = np.zeros(n, bool)
+    lonely[0] = True
+    alone = dense_from_patches(dataclasses.replace(flow, valid=lonely), shape=(h, w), patch_size=p)
+    assert np.isfinite(alone[:p, :p]).all() and not np.isfinite(alone[p + stride:, :]).any()
 
 
 def test_flat_frames_give_no_valid_patches():

@@ -1,0 +1,49 @@
+"""The dense field `bgsub flow` writes, against Middlebury RubberWhale's ground truth.
+
+Usage: python benchmarks/dense_field.py [DATA_DIR]   (default ../shared/data/flow)
+
+For each pyramid setting and patch stride: the share of pixels with a value (the rest are NaN:
+no valid patch covers them), and over the pixels with a value and a ground truth the mean
+end-point error and the share within 1 px.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from bgsub.flowfield import estimate_flow
+from bgsub.flowio import read_flo
+from bgsub.rbm import load_model
+
+DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "flow"
+
+
+def main(argv: list) -> int:
+    data = Path(argv[0]) if argv else DATA
+    frame10 = next(data.glob("**/frame10.png"), None)
+    if frame10 is None:
+        print(f"no frame10.png under {data}", file=sys.stderr)
+        return 2
+    first, second = cv2.imread(str(frame10)), cv2.imread(str(frame10.with_name("frame11.png")))
+    truth = read_flo(next(data.glob("**/flow10.flo")))
+    has_truth = np.isfinite(truth).all(axis=2)
+    model = load_model("natural")
+    print("| levels | stride | pixels with a value | EPE (px) | within 1 px |")
+    print("|---|---|---|---|---|")
+    for levels, stride in ((1, 6), (1, 3), (None, 6), (None, 3)):
+        dense = estimate_flow(first, second, model=model, dense=True, min_texture=0.0,
+                              levels=levels, stride=stride).dense
+        known = np.isfinite(dense).all(axis=2)
+        both = known & has_truth
+        error = np.hypot(*(dense[both] - truth[both]).T)
+        print(f"| {levels or '(auto)'} | {stride} | {known.mean():.1%} | {error.mean():.3f} | "
+              f"{(error < 1).mean():.1%} |")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main(sys.argv[1:]))

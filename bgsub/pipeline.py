@@ -277,6 +277,7 @@ class MovingCameraEngine(Engine):
         self._pending: Optional[tuple] = None
         self._prev_motion: Optional[np.ndarray] = None  # last good (3, 3)
         self._last: Optional[MotionResult] = None
+        self._last_matrix: Optional[np.ndarray] = None  # what the last frame applied (working size)
         self._last_flow: Any = None  # the front end's last dense readout, if any (debug views)
         self._last_frame: Optional[np.ndarray] = None
         self._last_mask: Optional[np.ndarray] = None
@@ -361,6 +362,7 @@ class MovingCameraEngine(Engine):
         frame (BGR or gray), ``gray`` its gray image, ``rate`` the checked learning rate."""
         empty = np.zeros(gray.shape, np.uint8)
         self._last = None
+        self._last_matrix = None
         if float(cv2.meanStdDev(gray)[1][0, 0]) < self.min_contrast:
             # Blank or textureless frame: no motion can be measured; keep the model as it is.
             self._finish_update()
@@ -369,6 +371,7 @@ class MovingCameraEngine(Engine):
         if self._prev is None:
             self._check_size(gray)
             self._restart(work, gray)
+            self._last_matrix = np.eye(3)  # no previous frame (as samples' camera_motion.npy)
             self.last_status = "ok"
             return empty
 
@@ -402,6 +405,7 @@ class MovingCameraEngine(Engine):
             self._restart(work, gray, cur)
             self.last_status = "fallback: scene cut"
             return empty
+        self._last_matrix = matrix
         violation = violation[0]
         mask = fuse_masks(score, violation, flow_boost=self.flow_boost, flow_damp=self.flow_damp,
                           threshold=self.threshold, min_area=self.min_area, close=self.close,
@@ -499,6 +503,26 @@ class MovingCameraEngine(Engine):
         self._prev = cur if cur is not None else self._frame_data(gray)
         self._prev_gray = gray
         self._prev_motion = None
+
+    @property
+    def last_motion(self) -> Optional[np.ndarray]:
+        """The camera motion from the previous frame to the last one, as the engine applied it
+        to its background model: ``(3, 3) float64`` in the input's pixel coordinates (as
+        :mod:`bgsub.global_motion`). The identity on the first frame; on a frame whose fit was
+        refused, the previous frame's motion (``last_status`` says so); None where the engine
+        measured none (a blank frame, a scene cut) and before the first frame."""
+        matrix = self._last_matrix
+        if matrix is None or self._in_shape is None:
+            return None
+        h, w = self._in_shape[:2]
+        ww, wh = self._work_size(w, h)
+        if (ww, wh) == (w, h):
+            return matrix.copy()
+        # Working-size pixel centres from the input's (cv2.resize's convention).
+        sx, sy = ww / w, wh / h
+        scale = np.array([[sx, 0.0, 0.5 * (sx - 1.0)], [0.0, sy, 0.5 * (sy - 1.0)],
+                          [0.0, 0.0, 1.0]])
+        return np.linalg.solve(scale, matrix @ scale)
 
     def get_background_image(self) -> Optional[np.ndarray]:
         """The background model's mean in the current frame's coordinates, at the input size

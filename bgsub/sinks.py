@@ -33,7 +33,7 @@ from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 from abc import ABC, abstractmethod
-from typing import Callable, Dict, Iterable, Iterator, List, Optional, Tuple, Union
+from typing import Any, Callable, Dict, Iterable, Iterator, List, Optional, Tuple, Union
 
 import numpy as np
 
@@ -622,6 +622,72 @@ class VisSink(_Sink):
         self._video.close()
 
 
+class MotionSink(_Sink):
+    """The camera motion of every frame, as ``bgsub samples`` writes ``camera_motion.npy``: a
+    ``(N, 3, 3) float64`` ``.npy`` file whose entry ``k`` maps pixel coordinates of frame
+    ``k - 1`` to frame ``k`` (entry 0 the identity), NaN where the engine measured none.
+
+    Rows go to a hidden file as they come (memory stays flat), which becomes the ``.npy`` when
+    the sink is closed, also after an interruption (the frames so far).
+
+    Parameters
+    ----------
+    path : str or path
+        A ``.npy`` file.
+    overwrite : bool
+        Replace an existing file.
+    """
+
+    def __init__(self, path: PathLike, *, overwrite: bool = False) -> None:
+        self.path = check_motion_output(path, overwrite=overwrite)
+        self._raw_path = _partial_path(self.path).with_suffix(".raw")
+        try:
+            self._raw: Optional[Any] = open(self._raw_path, "wb")
+        except OSError as err:
+            raise OutputError(f"cannot write {self._raw_path}: {err.strerror}") from None
+        self._count = 0
+
+    @property
+    def frames_written(self) -> int:
+        return self._count
+
+    def write(self, matrix: Optional[np.ndarray]) -> None:
+        """Add the motion of the next frame: ``(3, 3)``, or None (not measured: NaN)."""
+        row = np.full((3, 3), np.nan) if matrix is None else np.asarray(matrix, np.float64)
+        self._raw.write(np.ascontiguousarray(row.reshape(3, 3)).tobytes())
+        self._count += 1
+
+    def close(self) -> None:
+        if self._raw is None:
+            return
+        self._raw.close()
+        self._raw = None
+        try:
+            if self._count:
+                rows = np.memmap(self._raw_path, dtype=np.float64, mode="r",
+                                 shape=(self._count, 3, 3))
+                tmp = self.path.with_name(f".{self.path.name}.{uuid.uuid4().hex[:12]}.part")
+                out = np.lib.format.open_memmap(tmp, mode="w+", dtype=np.float64,
+                                                shape=rows.shape)
+                out[:] = rows
+                out.flush()
+                del out, rows
+                os.replace(tmp, self.path)
+        except OSError as err:
+            raise OutputError(f"cannot write {self.path}: {err.strerror or err}") from None
+        finally:
+            with contextlib.suppress(OSError):
+                os.unlink(self._raw_path)
+
+
+def check_motion_output(path: PathLike, *, overwrite: bool = False) -> Path:
+    """Check that a motion file (``.npy``) can be written at ``path``; nothing is written."""
+    output = check_file_output(path, overwrite=overwrite)
+    if output.suffix.lower() != ".npy":
+        raise OutputError(f"{output}: a motion file is a .npy array; give a name ending in .npy")
+    return output
+
+
 # --------------------------------------------------------------------------------------------
 # The processing loop
 # --------------------------------------------------------------------------------------------
@@ -695,6 +761,7 @@ def hold_interrupts() -> Iterator[None]:
 
 def process(frames: Iterable[Tuple[int, np.ndarray]], engine, masks: MaskSink, *,
             vis: Optional[VisSink] = None, flow_vis: Optional[VideoSink] = None,
+            motion: Optional[MotionSink] = None,
             on_frame: Optional[Callable[[int, np.ndarray], None]] = None) -> RunStats:
     """Run ``engine`` over ``frames`` and write its masks (and pictures) to the sinks.
 
@@ -712,6 +779,8 @@ def process(frames: Iterable[Tuple[int, np.ndarray]], engine, masks: MaskSink, *
     flow_vis : VideoSink, optional
         Gets ``engine.debug_image()`` after every frame (black where it returns ``None``, so the
         video stays in step with the input); the engine must have ``debug_image``.
+    motion : MotionSink, optional
+        Gets ``engine.last_motion`` after every frame; the engine must have it.
     on_frame : callable(index, mask), optional
         Called after every frame is written.
 
@@ -726,6 +795,8 @@ def process(frames: Iterable[Tuple[int, np.ndarray]], engine, masks: MaskSink, *
     """
     if flow_vis is not None and not callable(getattr(engine, "debug_image", None)):
         raise TypeError(f"{type(engine).__name__} has no debug_image() for a flow visualisation")
+    if motion is not None and not hasattr(engine, "last_motion"):
+        raise TypeError(f"{type(engine).__name__} has no last_motion for a motion file")
     stats = RunStats(has_status=hasattr(engine, "last_status"))
     started = time.perf_counter()
     for index, frame in frames:
@@ -743,6 +814,8 @@ def process(frames: Iterable[Tuple[int, np.ndarray]], engine, masks: MaskSink, *
                     flow_vis.write_blank()
                 else:
                     flow_vis.write(picture)
+            if motion is not None:
+                motion.write(engine.last_motion)
         status = getattr(engine, "last_status", None)
         if status is not None and status != "ok":
             stats.statuses[str(status)] += 1

@@ -582,3 +582,34 @@ def test_a_note_when_mask_numbers_differ_from_the_file_names(tmp_path, capsys, f
     assert ("masks are numbered by position" in err) == noted
     if noted:
         assert "the mask of in000020.png is number 1 (bin000001.png), not 20" in err
+
+
+def test_motion_file_holds_the_estimated_camera_motion(tmp_path, capsys):
+    from bgsub.global_motion import corner_error
+    from bgsub.samples import SceneSpec, generate_scene
+
+    scene = generate_scene(SceneSpec("pan", seed=2, width=160, height=120, n_frames=10),
+                           tmp_path)
+    out = tmp_path / "cam.npy"
+    code, err = _run(capsys, scene, "-o", tmp_path / "m.mkv", "-m", "compensated",
+                     "--motion", out)
+    assert code == 0, err
+    assert f"{out}" in err  # named in the summary
+    motion = np.load(out, allow_pickle=False)
+    truth = np.load(scene / "camera_motion.npy")
+    assert motion.shape == truth.shape == (10, 3, 3) and motion.dtype == np.float64
+    np.testing.assert_array_equal(motion[0], np.eye(3))
+    errors = [corner_error(m, t, width=160, height=120) for m, t in zip(motion[1:], truth[1:])]
+    assert np.median(errors) < 0.5, errors
+
+
+@pytest.mark.parametrize("extra, words", [
+    (["--motion", "cam.txt"], "a motion file is a .npy array"),
+    (["--motion", "cam.npy", "-m", "mog2"], "--motion: method 'mog2' estimates no camera motion"),
+    (["--motion", "m.mkv"], "given to both -o and --motion"),
+])
+def test_bad_motion_outputs_are_refused(tmp_path, clip, capsys, extra, words, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code, err = _run(capsys, clip, "-o", "m.mkv", *extra)
+    assert code == 2 and words in err, err
+    assert not (tmp_path / "m.mkv").exists()

@@ -479,3 +479,32 @@ def test_an_engine_mid_video_pickles_and_carries_on_like_the_original(name):
     twin = pickle.loads(pickle.dumps(eng))
     for frame in frames[3:]:
         np.testing.assert_array_equal(twin.apply(frame), eng.apply(frame))
+
+
+@pytest.mark.parametrize("name, work_width", [("compensated", 0), ("compensated", 160),
+                                              ("grbm", 160)])
+def test_last_motion_is_the_camera_motion_in_input_pixels(name, work_width):
+    """Also when frames are processed at another size: the motion is in the input's pixels."""
+    from bgsub.global_motion import corner_error
+    from bgsub.samples import SceneSpec, render_frames
+
+    spec = SceneSpec("pan", seed=1, width=320, height=240, n_frames=8)
+    engine = create_engine(name, work_width=work_width)
+    errors = []
+    for k, (image, _, truth) in enumerate(render_frames(spec)):
+        engine.apply(image)
+        if k == 0:
+            np.testing.assert_array_equal(engine.last_motion, np.eye(3))
+        else:
+            errors.append(corner_error(engine.last_motion, truth, width=320, height=240))
+    assert np.median(errors) < 0.5, errors  # the issue's figure for pans
+
+
+def test_last_motion_is_none_where_none_was_measured():
+    engine = create_engine("compensated")
+    assert engine.last_motion is None  # before any frame
+    frames = [f for f, _ in _frames(n=3)]
+    engine.apply(frames[0])
+    engine.apply(frames[1])
+    engine.apply(np.zeros_like(frames[2]))  # blank
+    assert engine.last_status.startswith("fallback") and engine.last_motion is None

@@ -408,3 +408,24 @@ def test_a_refused_file_is_explained_with_the_systems_reason(tmp_path):
     assert "No such file" in sinks._why_not_writable(tmp_path / "missing" / "x.mkv")
     assert sinks._why_not_writable(tmp_path / "x.mkv") == ""
     assert list(tmp_path.iterdir()) == []  # the probe leaves nothing behind
+
+
+def test_motion_sink_keeps_the_rows_so_far_when_interrupted(tmp_path, capsys):
+    from bgsub.sinks import MotionSink
+
+    path = tmp_path / "cam.npy"
+    shift = np.array([[1.0, 0, 2], [0, 1, 0], [0, 0, 1]])
+    with pytest.raises(KeyboardInterrupt):
+        with MotionSink(path) as sink:
+            sink.write(np.eye(3))
+            sink.write(shift)
+            sink.write(None)  # not measured
+            raise KeyboardInterrupt
+    rows = np.load(path, allow_pickle=False)
+    assert rows.shape == (3, 3, 3)
+    np.testing.assert_array_equal(rows[1], shift)
+    assert np.isnan(rows[2]).all()
+    assert "cam.npy is partial (interrupted) but valid: it holds 3 frames" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cam.npy"]  # no scratch file left
+    with pytest.raises(OutputError, match="already exists"):
+        MotionSink(path)

@@ -17,10 +17,12 @@ from bgsub.cli import common
 from bgsub.errors import InputError
 from bgsub.evaluation import VideoFrames
 from bgsub.sinks import (
+    MotionSink,
     RunStats,
     VideoSink,
     VisSink,
     check_mask_output,
+    check_motion_output,
     check_video_output,
     is_video_path,
     open_mask_sink,
@@ -53,6 +55,7 @@ examples:
   bgsub run clip.mp4 -o masks.mkv --method mog2 --param history=200
   bgsub run 'frames/*.png' -o masks/ --start 100 --stop 400 --step 2 --width 320
   bgsub run clip.mp4 -o masks.mkv --flow-vis flow.mp4  the engine's motion field and camera fit
+  bgsub run clip.mp4 -o masks.mkv --motion cam.npy     the estimated camera motion of every frame
 
 `bgsub methods` lists the engines and their parameters."""
 
@@ -78,6 +81,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--flow-vis", metavar="VIDEO", default=None,
                         help="also write the engine's picture of the motion it saw (engines "
                              "with debug_image, such as grbm)")
+    parser.add_argument("--motion", metavar="FILE.npy", default=None,
+                        help="also write the estimated camera motion: (N, 3, 3) float64, entry "
+                             "k maps pixels of frame k-1 to frame k, as bgsub samples' "
+                             "camera_motion.npy (identity first; NaN where none was measured; "
+                             "moving-camera engines)")
     common.add_source_options(parser)
     common.add_output_options(parser)
     parser.set_defaults(handler=run)
@@ -94,13 +102,17 @@ def _method(name: Optional[str]) -> str:
 
 def _check_outputs(args: argparse.Namespace, source: FrameSource) -> None:
     """Refuse bad outputs before any frame is processed."""
-    outputs = [("-o", args.output), ("--vis", args.vis), ("--flow-vis", args.flow_vis)]
+    outputs = [("-o", args.output), ("--vis", args.vis), ("--flow-vis", args.flow_vis),
+               ("--motion", args.motion)]
     outputs = [(flag, path) for flag, path in outputs if path]
     # First: "-" and the input's own folder are refused whether or not they look writable.
     common.check_distinct([args.input], outputs, input_folders=source.folders)
     check_mask_output(args.output, overwrite=args.overwrite)
     for flag, path in outputs[1:]:
-        check_video_output(path, overwrite=args.overwrite)
+        if flag == "--motion":
+            check_motion_output(path, overwrite=args.overwrite)
+        else:
+            check_video_output(path, overwrite=args.overwrite)
 
 
 def _plural(count: int, noun: str) -> str:
@@ -163,6 +175,9 @@ def run(args: argparse.Namespace) -> int:
     if args.flow_vis and not callable(getattr(engine, "debug_image", None)):
         raise InputError(f"--flow-vis: method {method!r} cannot draw its motion (it has no "
                          "debug_image); use a moving-camera method such as grbm")
+    if args.motion and not hasattr(engine, "last_motion"):
+        raise InputError(f"--motion: method {method!r} estimates no camera motion; use a "
+                         "moving-camera method such as grbm or compensated")
     # What `bgsub analogy` and `bgsub flow` say of a random-dot model on natural images.
     common.warn_if_binary_model_on_source(getattr(engine, "model", None), source,
                                           what=args.input)
@@ -175,21 +190,23 @@ def run(args: argparse.Namespace) -> int:
         masks = stack.enter_context(open_mask_sink(
             args.output, width=info.width, height=info.height, fps=info.fps,
             overwrite=args.overwrite))
-        vis = flow_vis = None
+        vis = flow_vis = motion = None
         if args.vis:
             vis = stack.enter_context(VisSink(args.vis, width=info.width, height=info.height,
                                               fps=info.fps, overwrite=args.overwrite))
         if args.flow_vis:
             flow_vis = stack.enter_context(VideoSink(args.flow_vis, fps=info.fps,
                                                      overwrite=args.overwrite))
+        if args.motion:
+            motion = stack.enter_context(MotionSink(args.motion, overwrite=args.overwrite))
         frames = common.progress(source, total=info.frame_count, desc=method, quiet=args.quiet)
-        stats = process(frames, engine, masks, vis=vis, flow_vis=flow_vis)
+        stats = process(frames, engine, masks, vis=vis, flow_vis=flow_vis, motion=motion)
 
     short = source.truncation()  # decoding ended well before the end the video declares
     if short:
         common.warn(short)
-    common.note(_summary(stats, method, [p for p in (args.output, args.vis, args.flow_vis) if p]),
-                quiet=args.quiet)
+    written = [p for p in (args.output, args.vis, args.flow_vis, args.motion) if p]
+    common.note(_summary(stats, method, written), quiet=args.quiet)
     eval_notice = _eval_notice(args)  # how to score what was written, once it is
     if eval_notice and stats.frames:
         common.note(eval_notice, quiet=args.quiet)

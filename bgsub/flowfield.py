@@ -14,6 +14,7 @@ Coordinates: a pyramid level ``l`` pixel ``x_l`` is ``x / 2**l`` in full-resolut
 
 from __future__ import annotations
 
+import os
 import threading
 from dataclasses import dataclass
 from typing import Any, List, Optional, Tuple
@@ -22,6 +23,7 @@ import cv2
 import numpy as np
 from numpy.lib.stride_tricks import as_strided
 
+from bgsub.errors import InputError
 from bgsub.global_motion import (
     GlobalMotion,
     apply_homography,
@@ -463,12 +465,12 @@ def estimate_flow(
     -------
     FlowEstimate
     """
+    model, prior = _checked_options(frame1, frame2, model=model, prior=prior, stride=stride,
+                                    levels=levels, max_motion=max_motion)
     fp1 = frame1 if isinstance(frame1, FramePyramid) else FramePyramid(frame1)
     fp2 = frame2 if isinstance(frame2, FramePyramid) else FramePyramid(frame2)
     g1 = fp1.images[0]
     if g1.shape != fp2.images[0].shape:
-        from bgsub.errors import InputError
-
         raise InputError(f"frames differ in size: {g1.shape} and {fp2.images[0].shape}")
     # The first frame's grids, texture maps, patches and their projections, per level and
     # stride (see _level), all cut up front (or ahead of time, by prepare_first_frame): shared
@@ -537,6 +539,39 @@ def estimate_flow(
     if dense:
         out.dense = dense_from_patches(out, shape=g1.shape, patch_size=p)
     return out
+
+
+def _checked_options(frame1: Any, frame2: Any, *, model: Any, prior: Optional[np.ndarray],
+                     stride: int, levels: Optional[int], max_motion: float) -> tuple:
+    """:func:`estimate_flow`'s ``(model, prior)``, a model name loaded and the prior as
+    ``(3, 3) float64``; :class:`InputError` for what it cannot take. Frames given as arrays must
+    be uint8 or float gray in [0, 1] (a float frame in 0-255 would pass every texture and
+    contrast threshold)."""
+    if isinstance(model, (str, os.PathLike)):
+        from bgsub.rbm import load_model
+
+        model = load_model(model)
+    for frame in (frame1, frame2):
+        if isinstance(frame, FramePyramid):
+            continue
+        frame = np.asarray(frame)
+        if frame.dtype.kind == "f":
+            if frame.size and not 0.0 <= float(np.nanmin(frame)) <= float(np.nanmax(frame)) <= 1.0:
+                raise InputError("float frames must be gray values in [0, 1]; give uint8 frames "
+                                 "as they are, or divide by 255")
+        elif frame.dtype != np.uint8:
+            raise InputError(f"frames must be uint8 or float in [0, 1], not {frame.dtype}")
+    if prior is not None:
+        prior = np.asarray(prior, np.float64)
+        if prior.shape != (3, 3) or not np.isfinite(prior).all():
+            raise InputError(f"prior must be a finite (3, 3) homography, not shape {prior.shape}")
+    if not (isinstance(stride, (int, np.integer)) and stride >= 1):
+        raise InputError(f"stride must be an integer of at least 1, not {stride!r}")
+    if levels is not None and not (isinstance(levels, (int, np.integer)) and levels >= 1):
+        raise InputError(f"levels must be at least 1 (or None: automatic), not {levels!r}")
+    if not (np.isfinite(max_motion) and max_motion > 0):
+        raise InputError(f"max_motion must be a positive number of pixels, not {max_motion!r}")
+    return model, prior
 
 
 def _choose_start(g1: np.ndarray, g2: np.ndarray, lvl: int, prior: Optional[np.ndarray], *,

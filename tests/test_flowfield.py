@@ -6,12 +6,13 @@ shipped translation model.
 """
 
 import dataclasses
+import re
 
 import cv2
 import numpy as np
 import pytest
 
-from bgsub.errors import ModelError
+from bgsub.errors import InputError, ModelError
 from bgsub.flowfield import FlowEstimate, dense_from_patches, estimate_flow
 
 
@@ -446,3 +447,25 @@ def test_a_frame_pyramid_serves_as_second_frame_then_first():
     # Reading the same pair again from the kept first-frame work changes nothing either.
     np.testing.assert_array_equal(estimate_flow(pb, pc, **kwargs).disp,
                                   estimate_flow(b, c, **kwargs).disp)
+
+
+@pytest.mark.parametrize("change, words", [
+    (dict(first=np.full((60, 80), 200.0, np.float32)), "float frames must be gray values in"),
+    (dict(first=np.zeros((60, 80), np.uint16)), "frames must be uint8 or float in [0, 1]"),
+    (dict(prior=np.eye(2)), "prior must be a finite (3, 3) homography"),
+    (dict(levels=0), "levels must be at least 1"),
+    (dict(max_motion=-1.0), "max_motion must be a positive number"),
+    (dict(stride=0), "stride must be an integer of at least 1"),
+])
+def test_bad_estimate_flow_options_are_input_errors(change, words):
+    base = _texture(60, 80, seed=3)[:60, :80]
+    options = dict(model=OracleMatcher(), levels=1)
+    options.update({k: v for k, v in change.items() if k != "first"})
+    with pytest.raises(InputError, match=re.escape(words)):
+        estimate_flow(change.get("first", base), base, **options)
+
+
+def test_a_model_name_is_loaded():
+    base = _texture(60, 80, seed=3)[:60, :80]
+    flow = estimate_flow(base, base, model="dots-translation", levels=1)
+    assert flow.disp.shape[1] == 2

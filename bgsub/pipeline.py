@@ -900,7 +900,7 @@ _GRBM_COMMON = _with_defaults(_COMMON, **GRBM_TUNED)
         "levels": Param(0, "pyramid levels (0 = enough for max_motion)", low=0),
         "max_motion": Param(32.0, "largest camera motion per frame to plan for (working px)",
                             low=0),
-        "min_texture": Param(0.02, "patches with less texture (0-1) are not evaluated",
+        "min_texture": Param(0.02, "patches with a lower texture weight are not evaluated",
                              low=0, high=1),
         "max_patches": Param(0, "evaluate at most this many patches per level (0 = all)", low=0),
         "iterations": Param(1, "readouts at the finest level, each re-warped by the last fit "

@@ -33,6 +33,7 @@ from typing import Optional
 import cv2
 import numpy as np
 
+from bgsub.errors import InputError
 from bgsub.global_motion import apply_homography, is_affine, is_identity
 
 __all__ = [
@@ -121,8 +122,19 @@ class CompensatedBackground:
         f = np.asarray(frame, dtype=np.float32)
         return f[:, :, None] if f.ndim == 2 else f
 
+    def _check(self, frame: np.ndarray) -> None:
+        """``InputError`` unless ``frame`` is (H, W) or (H, W, C) and, once the model exists,
+        of its size and channel count (shapes only: called every frame)."""
+        shape = _frame_shape(frame)
+        if self.mean is not None:
+            h, w, c = self.mean.shape
+            if shape[:2] != (h, w) or (shape[2] if len(shape) == 3 else 1) != c:
+                raise InputError(f"the frame is {_describe(shape)}, the background model "
+                                 f"{_describe((h, w, c))} (reset() it for another stream)")
+
     def reset(self, frame: np.ndarray) -> None:
         """Start over from ``frame`` ((H, W, C) or (H, W) uint8): every pixel age 0."""
+        _frame_shape(frame)
         f = self._as_float(frame)
         self.mean = f.copy()
         self.var = np.full_like(f, self.params.init_std**2)
@@ -162,8 +174,16 @@ class CompensatedBackground:
         -------
         (H, W) float32 >= 0; values > 1 differ by more than ``k_sigma`` std devs and
         ``min_diff`` gray levels (the larger of the two ratios' minimum). ``young_score``
-        where the pixel is younger than ``min_age``.
+        where the pixel is younger than ``min_age``. All 0 before the model's first
+        :meth:`reset` or :meth:`update` (no background yet: nothing differs from it, as
+        OpenCV's subtractors answer their first frame).
+
+        Raises
+        ------
+        InputError
+            ``frame`` is not of the model's size and channel count.
         """
+        self._check(frame)
         p = self.params
         f = self._as_float(frame)
         if self.mean is None:
@@ -208,14 +228,28 @@ class CompensatedBackground:
             OpenCV's convention. Negative: the model's own rates (``1 / (age + 1)`` for young
             pixels, ``alpha``, ``fg_alpha`` under ``fgmask``). In [0, 1]: every pixel with a
             history learns at this rate, foreground or not; 0 leaves them unchanged and 1
-            restarts the model from ``frame``. Pixels without history (uncovered at the border)
-            take the frame whatever the rate: there is nothing else to put there.
+            restarts the model from ``frame`` (which may then be of another size, as with
+            :meth:`reset`). Pixels without history (uncovered at the border) take the frame
+            whatever the rate: there is nothing else to put there.
+
+        Raises
+        ------
+        InputError
+            ``learning_rate`` above 1; ``frame`` not of the model's size and channel count (but
+            for a restart), or ``fgmask`` not of the frame's size.
         """
         p = self.params
+        if not learning_rate <= 1.0:  # (also refuses NaN)
+            raise InputError(f"the learning rate must be at most 1 (negative = automatic), "
+                             f"not {learning_rate}")
+        if fgmask is not None and np.shape(fgmask) != np.shape(frame)[:2]:
+            raise InputError(f"the foreground mask has shape {np.shape(fgmask)}, the frame "
+                             f"{np.shape(frame)}: the mask must be (H, W) of the frame's size")
         if learning_rate >= 1.0 or self.mean is None:
             self.reset(frame)
             self.age[:] = 1.0
             return
+        self._check(frame)
         cached, self._diff = self._diff, None
         sq = None
         if cached is not None and cached[0] is frame and self.mean is not None:
@@ -224,10 +258,6 @@ class CompensatedBackground:
         else:
             f = self._as_float(frame)
             d = None
-        if self.mean.shape != f.shape:
-            self.reset(f)
-            self.age[:] = 1.0
-            return
         if d is None:
             d = f - self.mean
         # rate = max(1 / (age + 1), alpha), in place (these are whole-frame float32 arrays).
@@ -261,6 +291,22 @@ class CompensatedBackground:
             return None
         img = np.clip(self.mean + 0.5, 0, 255).astype(np.uint8)
         return img[:, :, 0] if img.shape[2] == 1 else img
+
+
+def _frame_shape(frame: np.ndarray) -> tuple:
+    """The shape of a background-model frame; ``InputError`` unless (H, W) or (H, W, C)."""
+    shape = np.shape(frame)
+    if len(shape) not in (2, 3):
+        raise InputError(f"a background-model frame must be (H, W) or (H, W, C), not shape "
+                         f"{shape}")
+    return shape
+
+
+def _describe(shape: tuple) -> str:
+    """``"320x240 with 3 channels"`` for an (H, W, C) shape, ``"320x240 gray"`` for (H, W) or
+    (H, W, 1)."""
+    c = shape[2] if len(shape) == 3 else 1
+    return f"{shape[1]}x{shape[0]} " + ("gray" if c == 1 else f"with {c} channels")
 
 
 def _channels(a: np.ndarray, c: int) -> np.ndarray:
@@ -325,7 +371,20 @@ def still_in_image_map(
     Returns
     -------
     (H, W) float32 in [0, 1]
+
+    Raises
+    ------
+    InputError
+        ``prev`` and ``cur`` are not (H, W) uint8 of one size.
     """
+    for name, image in (("prev", prev), ("cur", cur)):
+        if getattr(image, "dtype", None) != np.uint8 or image.ndim != 2:
+            raise InputError(f"still_in_image_map takes (H, W) uint8 gray frames; {name} is "
+                             f"{getattr(image, 'dtype', type(image).__name__)} of shape "
+                             f"{np.shape(image)}")
+    if prev.shape != cur.shape:
+        raise InputError(f"still_in_image_map: prev and cur differ in size, {prev.shape} and "
+                         f"{cur.shape}")
     h, w = cur.shape
     warped = _warp(prev, matrix, (w, h), cv2.INTER_LINEAR, cv2.BORDER_REPLICATE)
     k = (int(window), int(window))
@@ -365,7 +424,8 @@ def flow_violation_map(
     matrix : (3, 3) float64
         The camera motion (previous -> current).
     weights : (N,) float
-        Reliability of each measurement (0 = ignore).
+        Reliability of each measurement (0 = ignore); required (``np.ones(N)`` weighs all
+        vectors alike).
     shape : (H, W)
         Size of the map, which is in *current*-frame coordinates (points are moved by ``disp``).
     threshold : float
@@ -383,7 +443,20 @@ def flow_violation_map(
     -------
     (H, W) float32 in [0, 1]: weighted fraction of the local vectors that violate; 0.5 (no
     opinion) where no vector reports.
+
+    Raises
+    ------
+    InputError
+        ``points`` and ``disp`` not both ``(N, 2)``, ``weights`` not ``(N,)``, or ``matrix``
+        not ``(3, 3)``.
     """
+    if weights is None:
+        raise InputError("flow_violation_map needs weights, one per vector (np.ones(N) weighs "
+                         "them all alike)")
+    ps, ds, ws = np.shape(points), np.shape(disp), np.shape(weights)
+    if len(ps) != 2 or ps[1] != 2 or ds != ps or ws != ps[:1]:
+        raise InputError(f"flow_violation_map needs points and disp of shape (N, 2) and weights "
+                         f"of shape (N,), not {ps}, {ds} and {ws}")
     h, w = int(shape[0]), int(shape[1])
     if len(points) == 0:
         return np.full((h, w), 0.5, np.float32)
@@ -433,8 +506,17 @@ def clean_mask(mask: np.ndarray, *, min_area: int = 30, close: int = 5,
     Returns
     -------
     (H, W) uint8, 0/255
+
+    Raises
+    ------
+    InputError
+        ``mask`` is not (H, W) (or (H, W, 1)).
     """
     mask = np.asarray(mask)
+    if mask.ndim == 3 and mask.shape[2] == 1:
+        mask = mask[:, :, 0]
+    elif mask.ndim != 2:
+        raise InputError(f"a mask must be (H, W), one value per pixel, not shape {mask.shape}")
     # Work on 0/1 (a bool mask is reinterpreted, not converted) and scale to 0/255 once.
     m = mask.view(np.uint8) if mask.dtype == bool else (mask > 0).view(np.uint8)
     m = cv2.morphologyEx(m, cv2.MORPH_OPEN, _kernel(cv2.MORPH_RECT, 3))
@@ -516,7 +598,15 @@ def fuse_masks(
     Returns
     -------
     (H, W) uint8, 0/255
+
+    Raises
+    ------
+    InputError
+        ``violation`` is not of ``bg_score``'s shape, or ``bg_score`` is not (H, W).
     """
+    if violation is not None and np.shape(violation) != np.shape(bg_score):
+        raise InputError(f"the flow violation map has shape {np.shape(violation)}, the "
+                         f"background score {np.shape(bg_score)}; they must be of one size")
     score = bg_score
     if violation is not None and (flow_boost != 0.0 or flow_damp != 0.0):
         # gain = 1 + boost * max(c, 0) + damp * min(c, 0), c = 2 violation - 1, clipped at 0.

@@ -69,10 +69,30 @@ class GlobalMotion:
         return int(np.count_nonzero(self.inliers))
 
 
-def apply_homography(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Map ``(N, 2)`` points through a ``(3, 3)`` homography; returns ``(N, 2)`` float64."""
-    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+def _points(points: np.ndarray, what: str, dtype: type) -> np.ndarray:
+    """``points`` as ``(N, 2)`` of ``dtype``; ``InputError`` unless they are ``(N, 2)`` or
+    OpenCV's ``(N, 1, 2)`` (a plain reshape would silently pair up the values of other shapes)."""
+    pts = np.asarray(points, dtype=dtype)
+    if pts.shape[-1:] != (2,) or not (pts.ndim == 2 or (pts.ndim == 3 and pts.shape[1] == 1)):
+        raise InputError(f"{what} must be (N, 2) points (x, y), not shape {pts.shape}")
+    return pts.reshape(-1, 2)
+
+
+def _homography(matrix: np.ndarray) -> np.ndarray:
+    """``matrix`` as ``(3, 3) float64``; ``InputError`` for another shape (e.g. OpenCV's
+    ``(2, 3)`` affine matrix, which needs a ``[0, 0, 1]`` row)."""
     h = np.asarray(matrix, dtype=np.float64)
+    if h.shape != (3, 3):
+        hint = " (append the row [0, 0, 1] to a 2x3 affine matrix)" if h.shape == (2, 3) else ""
+        raise InputError(f"a homography must be a (3, 3) matrix, not shape {h.shape}{hint}")
+    return h
+
+
+def apply_homography(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Map ``(N, 2)`` (or OpenCV's ``(N, 1, 2)``) points through a ``(3, 3)`` homography;
+    returns ``(N, 2)`` float64. ``InputError`` for other shapes."""
+    pts = _points(points, "points", np.float64)
+    h = _homography(matrix)
     xyw = pts @ h[:, :2].T + h[:, 2]
     w = xyw[:, 2:3]
     w = np.where(np.abs(w) < 1e-12, 1e-12, w)
@@ -178,14 +198,15 @@ def fit_global_motion(
     Parameters
     ----------
     src, dst : (N, 2) float
-        Corresponding points ``(x, y)`` in the previous and the current frame.
+        Corresponding points ``(x, y)`` in the previous and the current frame (OpenCV's
+        ``(N, 1, 2)`` is accepted too).
     weights : (N,) float, optional
         Reliability per correspondence (e.g. confidence x texture). Correspondences with weight
         ``<= min_weight`` are dropped and at most ``max_points`` of the heaviest are used.
     model : {"homography", "affine", "similarity", "translation"}
         Degrees of freedom: 8, 6, 4 (rotation, uniform scale, shift) or 2.
     threshold : float
-        RANSAC inlier distance in pixels (of ``dst``).
+        RANSAC inlier distance in pixels (of ``dst``), > 0.
     min_weight : float
         Correspondences of this weight or less are not used at all.
     min_points : int
@@ -201,6 +222,12 @@ def fit_global_motion(
     max_corner_shift : float
         Largest corner displacement accepted, as a fraction of the frame diagonal.
 
+    Raises
+    ------
+    InputError
+        An unknown ``model``, ``threshold <= 0``, points of another shape or ``weights`` of
+        another length.
+
     Returns
     -------
     GlobalMotion
@@ -209,11 +236,16 @@ def fit_global_motion(
     """
     if model not in MODELS:
         raise InputError(f"motion model must be one of {', '.join(MODELS)}, not {model!r}")
-    src = np.asarray(src, dtype=np.float32).reshape(-1, 2)
-    dst = np.asarray(dst, dtype=np.float32).reshape(-1, 2)
+    if not threshold > 0:  # (also refuses NaN)
+        raise InputError(f"the RANSAC threshold must be a distance > 0 px, not {threshold}")
+    src = _points(src, "src", np.float32)
+    dst = _points(dst, "dst", np.float32)
     if src.shape != dst.shape:
         raise InputError(f"src and dst differ in shape: {src.shape} and {dst.shape}")
     n = len(src)
+    if weights is not None and np.shape(weights) != (n,):
+        raise InputError(f"weights must be ({n},), one per correspondence, not shape "
+                         f"{np.shape(weights)}")
     idx = _select(src, dst, weights, min_weight, max_points)
     need = max(min_points, _MIN_POINTS[model])
     if len(idx) < need:

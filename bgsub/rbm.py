@@ -31,7 +31,7 @@ from typing import Any, Dict, Optional, Tuple, Union
 
 import numpy as np
 
-from bgsub.errors import ModelError, OutputError
+from bgsub.errors import InputError, ModelError, OutputError
 
 __all__ = [
     "FORMAT_VERSION",
@@ -195,6 +195,11 @@ class GatedRBM:
         x_raw, y_raw : (N, p*p) float32
             Patches of frames ``t`` and ``t+1``, gray values in [0, 1] (binary 0/1 for dots).
 
+        Raises
+        ------
+        InputError
+            Unless ``x_raw`` and ``y_raw`` are both ``(N, p*p)``.
+
         Returns
         -------
         x, y : (N, p*p) float32
@@ -207,10 +212,7 @@ class GatedRBM:
         """
         x = np.asarray(x_raw, dtype=np.float32)
         y = np.asarray(y_raw, dtype=np.float32)
-        if x.ndim != 2 or x.shape != y.shape or x.shape[1] != self.n_in:
-            raise ValueError(
-                f"prepare() needs two (N, {self.n_in}) arrays, got {x.shape} and {y.shape}"
-            )
+        self._check_pair(x, y, "raw patches")
         if self.normalization == "none":
             flat = (np.ptp(x, axis=1) <= 1e-6) | (np.ptp(y, axis=1) <= 1e-6)
             return x.copy(), y.copy(), flat
@@ -220,6 +222,16 @@ class GatedRBM:
         flat = rms < self.contrast_floor
         scale = np.maximum(rms, np.float32(self.contrast_floor))[:, None]
         return (x / scale).astype(np.float32), (y / scale).astype(np.float32), flat
+
+    def _check_pair(self, x: np.ndarray, y: np.ndarray, what: str) -> None:
+        """``InputError`` unless ``x`` is ``(N, n_in)`` and ``y`` is ``(N, n_out)`` (shapes
+        only: called once per batch)."""
+        xs, ys = np.shape(x), np.shape(y)
+        if (len(xs) != 2 or len(ys) != 2 or xs[0] != ys[0] or xs[1] != self.n_in
+                or ys[1] != self.n_out):
+            p = self.patch_size
+            raise InputError(f"{what} x and y must both be (N, {self.n_in}): N patches of "
+                             f"{p}x{p} pixels (the model's size), not {xs} and {ys}")
 
     # ------------------------------------------------------------------ inference
 
@@ -233,7 +245,13 @@ class GatedRBM:
         Returns
         -------
         (N, K) float32
+
+        Raises
+        ------
+        InputError
+            Unless ``x`` and ``y`` are ``(N, p*p)`` with the same ``N``.
         """
+        self._check_pair(x, y, "model inputs")
         fx = x @ self.wxf
         fx *= y @ self.wyf
         return sigmoid(fx @ self.whf.T + self.bh)

@@ -28,6 +28,7 @@ from typing import Optional, Tuple
 
 import numpy as np
 
+from bgsub.errors import InputError
 from bgsub.rbm import GatedRBM
 
 __all__ = [
@@ -186,6 +187,11 @@ def patch_displacements(
         relative to the peak's height above the mean score. 0 means a rival peak as strong
         elsewhere (ambiguous patch), 1 a single clear peak. Neighbours of the peak are excluded
         so a true half-pixel motion (two equal neighbouring scores) is not called ambiguous.
+
+    Raises
+    ------
+    InputError
+        ``x`` and ``y`` (when ``h`` is inferred from them) are not both ``(N, p*p)``.
     """
     scores = displacement_scores(model, x, y, max_disp=max_disp, h=h)
     return _peaks(scores, int(max_disp), subpixel=subpixel)
@@ -477,18 +483,37 @@ def analogy_images(
 
     Parameters
     ----------
-    image_x, image_y, image_x2 : (H, W) float32 gray images in [0, 1], ``H, W >= p``
+    image_x, image_y, image_x2 : (H, W) gray images of one size, ``H, W >= p``
+        float in [0, 1] or uint8 0-255 (converted like :func:`bgsub.tiling.to_gray`, which also
+        takes BGR).
     stride : int, optional
-        Patch step (default ``p // 3``, so every pixel is covered several times).
+        Patch step, 1 to ``p`` (default ``p // 3``, so every pixel is covered several times).
 
     Returns
     -------
     (H, W) float32 in [0, 1]
+
+    Raises
+    ------
+    InputError
+        Images of different sizes or smaller than a patch, or ``stride`` outside 1 to ``p``.
     """
     from numpy.lib.stride_tricks import sliding_window_view
 
+    from bgsub.tiling import to_gray
+
     p = model.patch_size
+    if stride is not None and (not isinstance(stride, (int, np.integer)) or not 1 <= stride <= p):
+        raise InputError(f"stride must be from 1 to the model's patch size {p} (a larger step "
+                         f"leaves pixels uncovered), not {stride}; None for the default")
+    image_x, image_y, image_x2 = (to_gray(im) for im in (image_x, image_y, image_x2))
+    if not image_x.shape == image_y.shape == image_x2.shape:
+        sizes = ", ".join(f"{im.shape[1]}x{im.shape[0]}" for im in (image_x, image_y, image_x2))
+        raise InputError(f"the analogy images x, y and x2 must have the same size, not {sizes}")
     hgt, wid = image_x.shape
+    if hgt < p or wid < p:
+        raise InputError(f"the analogy images are {wid}x{hgt}, smaller than the model's {p}x{p} "
+                         "patches")
     stride = max(1, stride or p // 3)
     ys = list(range(0, hgt - p + 1, stride))
     xs = list(range(0, wid - p + 1, stride))

@@ -85,6 +85,11 @@ def to_gray(frame: np.ndarray) -> np.ndarray:
     return frame.astype(np.float32, copy=False)
 
 
+def _check_grid(patch_size: int, stride: int) -> None:
+    if patch_size < 1 or stride < 1:
+        raise InputError(f"patch_size and stride must be positive, not {patch_size}, {stride}")
+
+
 def patch_grid(shape: tuple, *, patch_size: int = 13, stride: int = 6) -> tuple:
     """Where patches are cut in an image of ``shape``.
 
@@ -99,8 +104,7 @@ def patch_grid(shape: tuple, *, patch_size: int = 13, stride: int = 6) -> tuple:
     grid_shape : (rows, cols)
     """
     h, w = int(shape[0]), int(shape[1])
-    if patch_size < 1 or stride < 1:
-        raise InputError(f"patch_size and stride must be positive, not {patch_size}, {stride}")
+    _check_grid(patch_size, stride)
     if h < patch_size or w < patch_size:
         empty = np.zeros((0, 2), np.float32)
         return empty, (0, 0)
@@ -124,7 +128,11 @@ def extract_patches(image: np.ndarray, *, patch_size: int = 13, stride: int = 6)
     -------
     (N, patch_size**2) float32, row-major patches in the order of :func:`patch_grid`.
     """
+    _check_grid(patch_size, stride)
     image = np.asarray(image, dtype=np.float32)
+    if image.ndim != 2:
+        raise InputError(f"extract_patches needs an (H, W) gray image, not shape {image.shape} "
+                         "(see to_gray)")
     if image.shape[0] < patch_size or image.shape[1] < patch_size:
         return np.zeros((0, patch_size * patch_size), np.float32)
     windows = sliding_window_view(image, (patch_size, patch_size))[::stride, ::stride]

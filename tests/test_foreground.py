@@ -2,7 +2,9 @@
 
 import cv2
 import numpy as np
+import pytest
 
+from bgsub.errors import InputError
 from bgsub.foreground import (
     BackgroundParams,
     CompensatedBackground,
@@ -215,3 +217,83 @@ def test_still_in_image_map_has_no_opinion_without_camera_motion():
     prev, cur = _gray_view(world, 0.0), _gray_view(world, 0.0)
     cur[40:80, 60:100] = 255 - cur[40:80, 60:100]  # a change, but nothing to tell apart
     assert still_in_image_map(prev, cur, np.eye(3)).max() < 0.1
+
+
+# ---------------------------------------------------------------- bad input: InputError, one line
+
+
+def _reset_model(shape=(40, 50, 3)):
+    bg = CompensatedBackground()
+    bg.reset(np.full(shape, 100, np.uint8))
+    return bg
+
+
+@pytest.mark.parametrize("method", ["score", "update"])
+@pytest.mark.parametrize("shape", [(40, 60, 3), (40, 50), (40, 50, 4)])
+def test_frames_of_another_size_or_channel_count_are_refused(method, shape):
+    bg = _reset_model()
+    with pytest.raises(InputError, match=r"the frame is .*, the background model 50x40 with 3"):
+        getattr(bg, method)(np.full(shape, 100, np.uint8))
+
+
+def test_a_gray_model_takes_h_w_and_h_w_1_frames():
+    bg = _reset_model((40, 50))
+    for frame in (np.full((40, 50), 100, np.uint8), np.full((40, 50, 1), 100, np.uint8)):
+        assert bg.score(frame).shape == (40, 50)
+        bg.update(frame)
+
+
+def test_update_refuses_a_mask_of_another_size():
+    bg = _reset_model()
+    with pytest.raises(InputError, match=r"mask has shape \(40, 49\)"):
+        bg.update(np.full((40, 50, 3), 100, np.uint8), np.zeros((40, 49), bool))
+
+
+@pytest.mark.parametrize("rate", [1.5, 2.0, float("nan")])
+def test_update_refuses_a_learning_rate_above_one(rate):
+    bg = _reset_model()
+    with pytest.raises(InputError, match="learning rate must be at most 1"):
+        bg.update(np.full((40, 50, 3), 100, np.uint8), learning_rate=rate)
+
+
+def test_a_restart_may_change_the_size_and_score_before_any_frame_is_zero():
+    bg = CompensatedBackground()
+    np.testing.assert_array_equal(bg.score(np.full((8, 9), 7, np.uint8)), np.zeros((8, 9)))
+    bg = _reset_model()
+    bg.update(np.full((20, 30), 100, np.uint8), learning_rate=1.0)  # restarts, documented
+    assert bg.mean.shape == (20, 30, 1)
+
+
+def test_clean_mask_refuses_a_colour_mask():
+    with pytest.raises(InputError, match=r"mask must be \(H, W\).*\(20, 20, 3\)"):
+        clean_mask(np.zeros((20, 20, 3), np.uint8))
+    assert clean_mask(np.zeros((20, 20, 1), np.uint8)).shape == (20, 20)
+
+
+def test_flow_violation_map_refuses_missing_or_mismatched_weights():
+    pts = np.array([[10.0, 10.0], [20.0, 20.0]])
+    disp = np.zeros_like(pts)
+    with pytest.raises(InputError, match="needs weights"):
+        flow_violation_map(pts, disp, np.eye(3), weights=None, shape=(32, 32))
+    with pytest.raises(InputError, match=r"\(2, 2\), \(2, 2\) and \(3,\)"):
+        flow_violation_map(pts, disp, np.eye(3), weights=np.ones(3), shape=(32, 32))
+    with pytest.raises(InputError, match=r"\(2, 2\), \(1, 2\) and \(2,\)"):
+        flow_violation_map(pts, disp[:1], np.eye(3), weights=np.ones(2), shape=(32, 32))
+    with pytest.raises(InputError, match=r"\(3, 3\) matrix"):
+        flow_violation_map(pts, disp, np.eye(3)[:2], weights=np.ones(2), shape=(32, 32))
+
+
+def test_still_in_image_map_refuses_colour_float_or_mismatched_frames():
+    gray = np.zeros((30, 40), np.uint8)
+    with pytest.raises(InputError, match=r"\(H, W\) uint8 gray.*cur is uint8 of shape \(30, 40, 3\)"):
+        still_in_image_map(gray, np.zeros((30, 40, 3), np.uint8), np.eye(3))
+    with pytest.raises(InputError, match="prev is float32"):
+        still_in_image_map(gray.astype(np.float32), gray, np.eye(3))
+    with pytest.raises(InputError, match="differ in size"):
+        still_in_image_map(gray, gray[:, :39].copy(), np.eye(3))
+
+
+def test_fuse_masks_refuses_a_violation_map_of_another_shape():
+    with pytest.raises(InputError, match=r"violation map has shape \(30, 41\)"):
+        fuse_masks(np.zeros((30, 40), np.float32), np.zeros((30, 41), np.float32),
+                   flow_boost=1.0)

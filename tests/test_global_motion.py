@@ -76,3 +76,59 @@ def test_identity_and_affine_tests():
     assert not is_identity(np.array([[1, 0, 0.01], [0, 1, 0], [0, 0, 1.0]]))
     assert is_affine(np.array([[1.1, 0.1, 3], [0, 0.9, 2], [0, 0, 2.0]]))
     assert not is_affine(_true_h())
+
+
+# ---------------------------------------------------------------- bad input: InputError, one line
+
+def _pan_points(n=60, seed=5):
+    src = np.random.default_rng(seed).uniform([0, 0], [320, 240], (n, 2))
+    return src, src + [3.0, -2.0]
+
+
+@pytest.mark.parametrize("bad", ["xyz", "transposed"])
+def test_fit_refuses_points_that_are_not_n_by_2(bad):
+    from bgsub.errors import InputError
+
+    src, dst = _pan_points()
+    if bad == "xyz":  # was silently reshaped to (90, 2): swapped axes, ok=True
+        src, dst = np.hstack([src, np.ones((60, 1))]), np.hstack([dst, np.ones((60, 1))])
+    else:  # was "too few inliers"
+        src, dst = src.T, dst.T
+    with pytest.raises(InputError, match=r"src must be \(N, 2\) points"):
+        fit_global_motion(src, dst, model="translation")
+
+
+def test_fit_accepts_opencv_point_layout():
+    src, dst = _pan_points()
+    gm = fit_global_motion(src.reshape(-1, 1, 2), dst.reshape(-1, 1, 2), model="translation")
+    assert gm.ok and gm.inliers.shape == (60,)
+    np.testing.assert_allclose(gm.matrix[:2, 2], [3.0, -2.0], atol=1e-4)
+
+
+def test_fit_refuses_weights_of_another_length():
+    from bgsub.errors import InputError
+
+    src, dst = _pan_points()
+    with pytest.raises(InputError, match=r"weights must be \(60,\).*\(59,\)"):
+        fit_global_motion(src, dst, weights=np.ones(59))
+
+
+@pytest.mark.parametrize("threshold", [0.0, -1.0, float("nan")])
+def test_fit_refuses_a_threshold_that_is_not_positive(threshold):
+    from bgsub.errors import InputError
+
+    src, dst = _pan_points()
+    with pytest.raises(InputError, match="threshold must be a distance > 0"):
+        fit_global_motion(src, dst, threshold=threshold, model="translation")
+
+
+def test_apply_homography_refuses_a_2x3_matrix_and_3d_points():
+    from bgsub.errors import InputError
+
+    pts = np.array([[1.0, 2.0], [3.0, 4.0]])
+    with pytest.raises(InputError, match=r"\(3, 3\) matrix, not shape \(2, 3\).*\[0, 0, 1\]"):
+        apply_homography(np.eye(3)[:2], pts)
+    with pytest.raises(InputError, match=r"points must be \(N, 2\).*\(2, 3\)"):
+        apply_homography(np.eye(3), np.ones((2, 3)))
+    # OpenCV's (N, 1, 2) still maps to (N, 2).
+    np.testing.assert_allclose(apply_homography(np.eye(3), pts.reshape(-1, 1, 2)), pts)

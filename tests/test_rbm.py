@@ -196,3 +196,16 @@ def test_a_failed_save_keeps_the_old_model_and_leaves_no_partial_file(tmp_path, 
                         rng=np.random.default_rng(9)).save(path)
     assert path.read_bytes() == before
     assert [p.name for p in tmp_path.iterdir()] == ["m.npz"]
+
+
+@pytest.mark.parametrize("method", ["hidden_probs", "prepare"])
+@pytest.mark.parametrize("shapes", [((4, 16), (4, 16)), ((4, 9), (4, 16)), ((4, 9), (3, 9)),
+                                    ((4, 9), (1, 9)),
+                                    ((9,), (9,))])
+def test_inputs_of_another_shape_are_refused(method, shapes):
+    from bgsub.errors import InputError
+
+    model = _tiny()  # 3x3 patches: (N, 9)
+    x, y = (np.zeros(s, np.float32) for s in shapes)
+    with pytest.raises(InputError, match=r"must both be \(N, 9\): N patches of 3x3 pixels"):
+        getattr(model, method)(x, y)

@@ -259,3 +259,45 @@ def test_peak_confidence_ignores_the_peaks_neighbours_and_subpixel_stays_in_half
         rival = scores[n, far].max()
         expected = (scores[n, best[n]] - rival) / (scores[n, best[n]] - scores[n].mean())
         assert conf[n] == pytest.approx(np.clip(expected, 0, 1), abs=1e-5)
+
+
+# ---------------------------------------------------------------- bad input: InputError, one line
+
+def test_analogy_images_reads_uint8_images_as_gray_levels(shift_model):
+    x, y = _shifted_images(12)
+    x2, _ = _shifted_images(13)
+    expected = analogy_images(shift_model, x, y, x2)
+    as_uint8 = [(im * 255).astype(np.uint8) for im in (x, y, x2)]
+    out = analogy_images(shift_model, *as_uint8)
+    assert out.min() < 0.5  # not the blank (all 1.0) image uint8 used to give
+    np.testing.assert_allclose(out, expected, atol=1e-4)
+
+
+@pytest.mark.parametrize("stride", [0, -1, 5, 2.5])
+def test_analogy_images_refuses_a_stride_outside_one_to_the_patch_size(stride):
+    from bgsub.errors import InputError
+
+    model = _random_model(p=4)
+    img = np.random.default_rng(0).random((12, 12)).astype(np.float32)
+    with pytest.raises(InputError, match="stride must be from 1 to the model's patch size 4"):
+        analogy_images(model, img, img, img, stride=stride)
+
+
+@pytest.mark.parametrize("sizes", [((12, 12), (12, 12), (12, 13)), ((3, 12), (3, 12), (3, 12))])
+def test_analogy_images_refuses_images_of_different_or_too_small_sizes(sizes):
+    from bgsub.errors import InputError
+
+    model = _random_model(p=4)
+    images = [np.zeros(s, np.float32) for s in sizes]
+    with pytest.raises(InputError, match="analogy images.*(same size|smaller than)"):
+        analogy_images(model, *images)
+
+
+def test_patch_displacements_refuses_x_and_y_of_different_counts():
+    from bgsub.errors import InputError
+
+    model = _random_model(p=4)
+    rng = np.random.default_rng(3)
+    x, y = rng.random((5, 16)).astype(np.float32), rng.random((1, 16)).astype(np.float32)
+    with pytest.raises(InputError, match=r"\(5, 16\) and \(1, 16\)"):
+        patch_displacements(model, x, y, max_disp=1)

@@ -63,3 +63,18 @@ def test_texture_at_centres_equals_the_full_texture_map_there():
     got = texture_at(gray, centres, window=13)
     np.testing.assert_allclose(got, expected, rtol=1e-5, atol=1e-9)
     assert got.min() == 0.0 and got.max() > 0.0
+
+
+@pytest.mark.parametrize("kwargs", [dict(stride=0), dict(stride=-2), dict(patch_size=0)])
+def test_extract_patches_refuses_a_step_or_size_below_one(kwargs):
+    from bgsub.tiling import extract_patches
+
+    with pytest.raises(InputError, match="patch_size and stride must be positive"):
+        extract_patches(np.zeros((20, 20), np.float32), **kwargs)
+
+
+def test_extract_patches_refuses_a_colour_image():
+    from bgsub.tiling import extract_patches
+
+    with pytest.raises(InputError, match=r"\(H, W\) gray image.*\(20, 20, 3\)"):
+        extract_patches(np.zeros((20, 20, 3), np.float32))

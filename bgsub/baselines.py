@@ -7,7 +7,7 @@ poor as soon as the camera moves (every edge of the scene then looks like motion
   of Gaussians with an adaptive number of components);
 * ``knn`` wraps ``cv2.createBackgroundSubtractorKNN`` (Zivkovic & van der Heijden 2006: per-pixel
   sample sets, foreground when fewer than k samples are near);
-* ``framediff`` thresholds the absolute grey-level difference to the previous frame.
+* ``framediff`` thresholds the absolute gray-level difference to the previous frame.
 
 All parameter defaults are OpenCV's, except ``detect_shadows``, which is off: bgsub masks are
 strictly 0/255, and a shadow is background in CDnet's ground truth. With shadows on, OpenCV marks
@@ -260,7 +260,7 @@ def make_knn(
 
 
 class FrameDifference(Engine):
-    """Foreground where the grey level changed by more than ``threshold`` since the last frame.
+    """Foreground where the gray level changed by more than ``threshold`` since the last frame.
 
     The first frame has no predecessor and gives an empty mask. ``learning_rate=0`` keeps the
     current reference frame (OpenCV's "do not update"); any other value replaces it with the
@@ -269,7 +269,7 @@ class FrameDifference(Engine):
     Parameters
     ----------
     threshold : int
-        Grey-level difference (0-255) a pixel must exceed to be foreground.
+        Gray-level difference (0-255) a pixel must exceed to be foreground.
     morph_size : int
         Side of the elliptic structuring element of a morphological opening that removes
         isolated noise pixels; 0 or 1 turns it off.
@@ -324,7 +324,7 @@ class FrameDifference(Engine):
     "framediff",
     "difference to the previous frame, thresholded; static camera only",
     params={
-        "threshold": Param(25, "grey-level change (0-255) a pixel must exceed to be foreground",
+        "threshold": Param(25, "gray-level change (0-255) a pixel must exceed to be foreground",
                            low=0, high=254),
         "morph_size": Param(
             0, "side of an elliptic opening that removes speckle noise (0 or 1: off)",

@@ -42,6 +42,11 @@ TIMING_NOTE = (
 )
 
 
+def _count(n: int, noun: str) -> str:
+    """``"1 thread"``, ``"2 threads"``."""
+    return f"{n} {noun}" if n == 1 else f"{n} {noun}s"
+
+
 @dataclass(frozen=True)
 class MachineInfo:
     """The machine a benchmark ran on."""
@@ -62,18 +67,19 @@ class MachineInfo:
 
     def to_text(self) -> str:
         env = ", ".join(f"{k}={v}" for k, v in self.thread_env.items()) or "none set"
-        blas_threads = "unknown" if self.blas_threads is None else str(self.blas_threads)
+        blas_threads = "unknown threads" if self.blas_threads is None else \
+            _count(self.blas_threads, "thread")
         load = "unknown" if self.load_average is None else \
             f"{self.load_average:.2f} (1-minute average at the start)"
         if self.load_average is not None and self.load_average > 0.5 * self.usable_cores:
             load += "; other programs were busy: expect lower, noisier figures"
         return "\n".join(
             [
-                f"machine : {self.cpu}, {self.logical_cores} logical cores "
+                f"machine : {self.cpu}, {_count(self.logical_cores, 'logical core')} "
                 f"({self.usable_cores} usable)",
                 f"system  : {self.platform}, Python {self.python}",
-                f"libs    : numpy {self.numpy} (BLAS {self.blas}, {blas_threads} threads), "
-                f"OpenCV {self.opencv} ({self.opencv_threads} threads)",
+                f"libs    : numpy {self.numpy} (BLAS {self.blas}, {blas_threads}), "
+                f"OpenCV {self.opencv} ({_count(self.opencv_threads, 'thread')})",
                 f"threads : {env}",
                 f"load    : {load}",
                 f"date    : {self.date}",
@@ -125,8 +131,8 @@ class BenchReport:
         if has_mem:
             header += "  | peak RSS MiB (growth)"
         lines = [
-            f"bgsub bench: {self.frames} frames of {self.width}x{self.height}, "
-            f"{self.repeats} {'run' if self.repeats == 1 else 'runs'} per method; clip: {self.clip}",
+            f"bgsub bench: {_count(self.frames, 'frame')} of {self.width}x{self.height}, "
+            f"{_count(self.repeats, 'run')} per method; clip: {self.clip}",
             self.note,
             "",
             header,
@@ -365,7 +371,8 @@ def bench_methods(
     Parameters
     ----------
     methods : names of registered engines; default all registered engines.
-    width, height : frame size in pixels.
+    width, height : frame size in pixels, at least 16 x 16, odd or even (nothing is written).
+        From 64 x 48 the clip is a :mod:`bgsub.samples` scene, below it a panning texture.
     frames : timed frames per run (one more, untimed, warms each engine up).
     repeats : runs per method; the median fps is reported.
     params : ``{method: {param: value}}`` engine parameters.
@@ -378,7 +385,9 @@ def bench_methods(
     BenchReport
     """
     if width < 16 or height < 16:
-        raise InputError(f"bench: frame size {width}x{height} is too small (at least 16x16)")
+        raise InputError(f"bench: frame size {width}x{height} is too small (at least 16x16; "
+                         f"below {_SCENE_MIN_SIZE[0]}x{_SCENE_MIN_SIZE[1]}, the smallest sample "
+                         "scene, the clip is a panning random texture)")
     if frames < 1 or repeats < 1:
         raise InputError("bench: --frames and --repeats must be at least 1")
     if seed < 0:

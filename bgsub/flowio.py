@@ -11,6 +11,7 @@ component above ``1e9`` (in magnitude) as unknown.
 
 from __future__ import annotations
 
+import math
 import os
 from pathlib import Path
 from typing import Optional, Sequence, Tuple, Union
@@ -102,14 +103,19 @@ def write_flo(path: PathLike, flow: np.ndarray, *, overwrite: bool = False) -> P
     OutputError
         The file exists (without ``overwrite``) or cannot be written.
     ValueError
-        ``flow`` is not an ``(H, W, 2)`` array (a programming error, not user input).
+        ``flow`` is not an ``(H, W, 2)`` array, or is empty (a programming error, not user
+        input).
     """
     flow = np.asarray(flow)
-    if flow.ndim != 3 or flow.shape[2] != 2 or flow.shape[0] < 1 or flow.shape[1] < 1:
+    if flow.ndim != 3 or flow.shape[2] != 2:
         raise ValueError(f"flow must be (H, W, 2), got shape {flow.shape}")
+    if flow.shape[0] < 1 or flow.shape[1] < 1:
+        raise ValueError(f"flow is empty (shape {flow.shape}): a .flo file holds at least "
+                         "one pixel")
     p = Path(path)
     if p.exists() and not overwrite:
-        raise OutputError(f"output exists (use --overwrite to replace it): {p}")
+        raise OutputError(f"{p}: already exists (overwrite=True, or --overwrite on the command "
+                          "line, replaces it)")
     data = flow.astype("<f4", copy=True)
     data[~np.isfinite(data).all(axis=2)] = UNKNOWN_VALUE
     height, width = data.shape[:2]
@@ -150,6 +156,13 @@ def _make_color_wheel() -> np.ndarray:
 _COLOR_WHEEL = _make_color_wheel()
 
 
+def _check_max_magnitude(max_magnitude: Optional[float]) -> None:
+    # Written so that NaN fails too (every comparison with NaN is false).
+    if max_magnitude is not None and not 0 < float(max_magnitude) < math.inf:
+        raise InputError(f"max_magnitude must be a number of pixels above 0 (None: the largest "
+                         f"in the field), not {max_magnitude!r}")
+
+
 def flow_to_color(flow: np.ndarray, *, max_magnitude: Optional[float] = None) -> np.ndarray:
     """Colour-code a flow field with the Middlebury colour wheel (Baker et al.).
 
@@ -162,12 +175,20 @@ def flow_to_color(flow: np.ndarray, *, max_magnitude: Optional[float] = None) ->
     flow : (H, W, 2) float array
         ``(u, v)`` per pixel, NaN where unknown.
     max_magnitude : float, optional
-        Magnitude shown at full saturation; default the largest known magnitude in ``flow``.
+        Magnitude shown at full saturation, a finite number above 0; None (the default): the
+        largest known magnitude in ``flow``.
 
     Returns
     -------
     (H, W, 3) uint8 BGR image (OpenCV's channel order, ready for ``cv2.imwrite``).
+
+    Raises
+    ------
+    InputError
+        ``max_magnitude`` is 0, negative, NaN or infinite (``bgsub flow --max-magnitude``
+        refuses the same values).
     """
+    _check_max_magnitude(max_magnitude)
     flow = np.asarray(flow, dtype=np.float64)
     if flow.ndim != 3 or flow.shape[2] != 2:
         raise ValueError(f"flow must be (H, W, 2), got shape {flow.shape}")
@@ -308,12 +329,13 @@ def flow_picture(
         Arrow length per pixel of motion; default: the 95th-percentile motion is drawn
         ``0.9 * step`` long (at least 1x).
     max_magnitude : float, optional
-        Colour-code saturation (see :func:`flow_to_color`).
+        Colour-code saturation (see :func:`flow_to_color`); above 0 when given.
 
     Returns
     -------
     (H, W, 3) uint8 BGR
     """
+    _check_max_magnitude(max_magnitude)  # refused with arrows too, which do not use it
     if not arrows:
         return flow_to_color(flow, max_magnitude=max_magnitude)
     if image is None:

@@ -94,7 +94,8 @@ class SceneSpec:
     seed : int
         Seeds every random choice (background, camera path, objects, sensor noise).
     width, height : int
-        Frame size in pixels (at least 64 x 48).
+        Frame size in pixels (at least 64 x 48). :func:`render_frames` takes any; to be written
+        by :func:`generate_scene` (with its .mp4 video) both must be even.
     n_frames : int
         Number of frames (at least 2).
     fps : float
@@ -102,7 +103,7 @@ class SceneSpec:
     n_objects : int or None
         Number of foreground objects; None draws 2-4 from ``seed``.
     noise_sigma : float
-        Standard deviation of the Gaussian sensor noise, in grey levels.
+        Standard deviation of the Gaussian sensor noise, in gray levels.
     boundary_unknown : bool
         Mark the antialiased 1-pixel rim of each object 170 (unknown) in the ground truth.
     warmup : int or None
@@ -134,11 +135,6 @@ class SceneSpec:
             raise InputError(f"scene size {self.width}x{self.height} is too small (minimum 64x48)")
         if self.width > 4096 or self.height > 4096:
             raise InputError(f"scene size {self.width}x{self.height} is too large (max 4096)")
-        if self.width % 2 or self.height % 2:
-            # The scene's video would be padded to even by the writer and no longer match its
-            # frames and ground truth.
-            raise InputError(f"scene size {self.width}x{self.height} must be even in both "
-                             "dimensions (video codecs need it)")
         if self.n_frames < 2:
             raise InputError(f"a scene needs at least 2 frames, not {self.n_frames}")
         if self.n_frames > MAX_FRAMES:
@@ -304,7 +300,7 @@ def _noise_field(rng: np.random.Generator, shape: Tuple[int, int],
     return out
 
 
-# Muted natural colours (BGR): foliage, soil, stone, bark, sky-grey.
+# Muted natural colours (BGR): foliage, soil, stone, bark, sky-gray.
 _PALETTE = np.array([
     [70, 120, 90], [60, 100, 130], [120, 130, 135], [50, 80, 110], [150, 150, 140],
     [90, 140, 120], [40, 70, 90], [130, 120, 100], [100, 110, 80], [170, 165, 160],
@@ -544,6 +540,18 @@ def render_frames(spec: SceneSpec, *, include_objects: bool = True) -> Iterator[
         yield SceneFrame(image, gt, motion[k].copy())
 
 
+def check_video_size(width: int, height: int) -> None:
+    """:class:`InputError` unless ``width`` and ``height`` are even, as a scene written by
+    :func:`generate_scene` needs: the codec would pad its .mp4 to even sizes, and the video
+    would no longer match the scene's frames and ground truth. (Rendering in memory, as
+    :func:`render_frames` and ``bgsub bench`` do, takes any size.)"""
+    if width % 2 or height % 2:
+        raise InputError(f"scene size {width}x{height} must be even in both dimensions to be "
+                         "written: the codec would pad the scene's .mp4 video to even sizes and "
+                         "it would no longer match the frames and ground truth (e.g. "
+                         f"{width - width % 2}x{height - height % 2})")
+
+
 def generate_scene(spec: SceneSpec, out_dir: Union[str, os.PathLike], *, overwrite: bool = False,
                    on_frame: Optional[Callable[[int], object]] = None) -> Path:
     """Render ``spec`` and write it to ``out_dir/<category>_s<seed>/`` in the CDnet layout.
@@ -568,13 +576,17 @@ def generate_scene(spec: SceneSpec, out_dir: Union[str, os.PathLike], *, overwri
 
     Raises
     ------
+    InputError
+        The frame size is odd (see :func:`check_video_size`).
     OutputError
         The scene folder exists and ``overwrite`` is False, or it cannot be written.
     """
+    check_video_size(spec.width, spec.height)
     out_dir = Path(out_dir)
     target = out_dir / spec.name
     if target.exists() and not overwrite:
-        raise OutputError(f"{target} already exists (use --overwrite to replace it)")
+        raise OutputError(f"{target}: already exists (overwrite=True, or --overwrite on the "
+                          "command line, replaces it)")
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
         tmp = Path(tempfile.mkdtemp(prefix=f".{spec.name}.", dir=out_dir))

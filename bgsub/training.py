@@ -85,6 +85,44 @@ class Curriculum:
                 return min(limit, full)
         return full
 
+    def scaled(self, factor: float, *, epochs: Optional[int] = None) -> "Curriculum":
+        """The same stages over ``factor`` times as many epochs (bounds rounded half up).
+
+        Only stages that still get an epoch of their own are kept: bounds above 0, above the
+        bound before them, and below ``epochs`` when given (so that the full range is trained
+        last). E.g. ``100:1,200:2`` scaled by ``3 / 400`` for 3 epochs is ``1:1,2:2``.
+        """
+        if not 0 < factor < math.inf:
+            raise InputError(f"a curriculum is scaled by a number > 0, not {factor!r}")
+        stages = []
+        previous = 0
+        for until, limit in self.stages:
+            bound = int(math.floor(until * factor + 0.5))
+            if bound <= previous or (epochs is not None and bound >= epochs):
+                continue
+            stages.append((bound, limit))
+            previous = bound
+        return Curriculum(tuple(stages))
+
+    def unreached(self, epochs: int,
+                  full: float) -> Tuple[Tuple[Tuple[int, float], ...], Optional[float]]:
+        """What a run of ``epochs`` epochs never gets to: ``(idle, last)``.
+
+        ``idle`` are the stages that start at or after ``epochs`` (they never run); ``last`` is
+        the limit still in force at the final epoch when that is below ``full`` (the full range
+        is never trained), else None.
+        """
+        idle = []
+        last: Optional[float] = None
+        start = 0
+        for until, limit in self.stages:
+            if start >= epochs:
+                idle.append((until, limit))
+            elif until >= epochs and min(limit, full) < full:
+                last = min(limit, full)
+            start = max(start, until)
+        return tuple(idle), last
+
     def __str__(self) -> str:
         return ",".join(f"{u}:{l:g}" for u, l in self.stages)
 

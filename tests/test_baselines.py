@@ -281,3 +281,13 @@ def test_every_engine_takes_opencvs_keyword_spelling(name):
 def test_both_spellings_of_the_learning_rate_are_refused():
     with pytest.raises(InputError, match="not both"):
         create_engine("mog2").apply(_background(), learning_rate=0.5, learningRate=0.5)
+
+
+def test_framediff_help_says_gray_like_everything_else():
+    # "gray" throughout bgsub (gray frames, read as gray); framediff said "grey-level".
+    import bgsub.baselines as baselines
+
+    spec = get_engine_spec("framediff")
+    texts = [spec.params["threshold"].help, baselines.__doc__, baselines.FrameDifference.__doc__]
+    assert "gray-level" in spec.params["threshold"].help
+    assert not any("grey" in text.lower() for text in texts)

@@ -102,3 +102,30 @@ def test_api_rejects_params_for_other_methods() -> None:
 def test_cli_empty_methods_is_refused_not_all(bgsub_error, value) -> None:
     # As in `bgsub compare`: an empty list is a mistake, not "every engine".
     assert "--methods is empty" in bgsub_error(["bench", "--methods", value, "--frames", "1"])
+
+
+def test_odd_sizes_are_benchmarked(capsys) -> None:
+    # Nothing is written, so nothing needs even sizes: "even (video codecs need it)" was wrong.
+    assert main(["bench", "--size", "161x121", "--frames", "1", "--repeats", "1", "--methods",
+                 "framediff", "-q"]) == 0
+    assert "bgsub bench: 1 frame of 161x121, 1 run per method" in capsys.readouterr().out
+    frames, description = make_clip(width=65, height=49, n_frames=2)
+    assert frames.shape == (2, 49, 65, 3) and "'pan' scene" in description
+
+
+def test_too_small_size_says_what_bench_renders(bgsub_error) -> None:
+    err = bgsub_error(["bench", "--size", "15x40", "--methods", "framediff"])
+    assert "at least 16x16; below 64x48, the smallest sample scene, the clip is a panning" in err
+
+
+@pytest.mark.parametrize("count, noun", [(1, "1 thread"), (2, "2 threads")])
+def test_machine_description_counts_in_singular_and_plural(count, noun) -> None:
+    from dataclasses import replace
+
+    info = replace(machine_info(), logical_cores=count, usable_cores=count, blas_threads=count,
+                   opencv_threads=count)
+    text = info.to_text()
+    core = "1 logical core (1 usable)" if count == 1 else "2 logical cores (2 usable)"
+    assert core in text
+    assert f"({noun})" in text and f", {noun})" in text  # OpenCV's and BLAS's
+    assert "(1 threads)" not in text and ", 1 threads" not in text

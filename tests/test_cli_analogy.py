@@ -109,3 +109,17 @@ def test_disk_full_while_writing(capsys, images, tmp_path, monkeypatch, bgsub_er
     assert f"cannot write image {out}: {os.strerror(errno.ENOSPC)}" in err
     assert not out.exists()
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []  # no partial file
+
+
+def test_success_is_a_bgsub_note_on_stderr(images, tmp_path, capsys):
+    # Like flow's "bgsub: flow of ... written to ...": a note, not a result on stdout.
+    out = tmp_path / "y2.png"
+    assert main(["analogy", *images, "-o", str(out), "--zoom", "4"]) == 0
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert captured.err == f"bgsub: analogy of 13x13 written to {out} (52x52 with --zoom 4)\n"
+
+
+def test_quiet_silences_the_note(images, tmp_path, capsys):
+    assert main(["analogy", *images, "-o", str(tmp_path / "y2.png"), "-q"]) == 0
+    assert capsys.readouterr() == ("", "")

@@ -181,3 +181,152 @@ def test_ctrl_c_during_the_evaluation_keeps_the_trained_model(tmp_path, capsys, 
     assert "interrupted during the held-out evaluation; saved the fully trained model" in capsys.readouterr().err
     model = GatedRBM.load(out)
     assert model.meta["epochs"] == 3 and "held_out" not in model.meta
+
+
+# ------------------------------------------------------------------------------- curriculum
+
+
+@pytest.fixture
+def captured_training(monkeypatch):
+    """Record the pair source and config `bgsub train` would train with, then stop (Ctrl-C in
+    the first epoch: nothing is written)."""
+    seen = {}
+
+    def capture(source, config, **kwargs):
+        seen["source"], seen["config"] = source, config
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(training, "train", capture)
+    return seen
+
+
+@pytest.mark.parametrize("extra", [[], ["--epochs", "400"]])
+def test_documented_3px_recipe_keeps_its_curriculum(tmp_path, capsys, captured_training, extra):
+    # models/dots-translation-3px.md: --max-shift 3 (--epochs 400): 100:1,200:2, unscaled.
+    args = ["train", "--data", "dots-translation", "--max-shift", "3", "-o",
+            str(tmp_path / "m.npz"), *extra]
+    assert main(args) == 130
+    assert captured_training["config"].epochs == 400
+    assert captured_training["config"].lr_schedule == "linear"
+    assert str(captured_training["source"].curriculum) == "100:1,200:2"
+    assert "curriculum" not in capsys.readouterr().err
+
+
+def test_default_curriculum_is_scaled_to_fewer_epochs(tmp_path, capsys):
+    # 100:1,200:2 counted absolute epochs: --epochs 3 trained only +-1 shifts.
+    out = tmp_path / "m.npz"
+    args = _tiny(out, "--max-shift", "3")
+    args.remove("-q")
+    assert main(args) == 0
+    assert GatedRBM.load(out).meta["curriculum"] == "1:1,2:2"
+    err = capsys.readouterr().err
+    assert ("bgsub: default curriculum 100:1,200:2 (for 400 epochs) scaled to --epochs 3: "
+            "1:1,2:2") in err.splitlines()
+
+
+def test_scaled_curriculum_note_is_silenced_by_quiet(tmp_path, capsys):
+    assert main(_tiny(tmp_path / "m.npz", "--max-shift", "3")) == 0
+    assert capsys.readouterr().err == ""
+
+
+def test_curriculum_beyond_the_epochs_is_warned_even_when_quiet(tmp_path, capsys):
+    out = tmp_path / "m.npz"
+    assert main(_tiny(out, "--max-shift", "3", "--curriculum", "2:1,3:2,100:3")) == 0
+    err = capsys.readouterr().err.strip()
+    assert err == ("bgsub: warning: --curriculum 2:1,3:2,100:3 reaches beyond --epochs 3: the "
+                   "range stays at 2 to the end and never reaches the full --max-shift 3; "
+                   "stage 100:3 never runs")
+    assert GatedRBM.load(out).meta["curriculum"] == "2:1,3:2,100:3"  # given: kept as it is
+
+
+def test_curriculum_within_the_epochs_says_nothing(tmp_path, capsys):
+    assert main(_tiny(tmp_path / "m.npz", "--max-shift", "3", "--curriculum", "1:1,2:2")) == 0
+    assert capsys.readouterr().err == ""
+
+
+# ------------------------------------------------------------------------------- data kinds
+
+
+@pytest.mark.parametrize("data, extra, message", [
+    ("dots-translation", ["--max-angle", "10"],
+     "--max-angle applies to dots-rotation only, not to dots-translation"),
+    ("shifted-images", ["--max-angle", "10"],
+     "--max-angle applies to dots-rotation only, not to shifted-images"),
+    ("dots-rotation", ["--max-shift", "2"],
+     "--max-shift applies to dots-translation, shifted-images and video data, not to "
+     "dots-rotation (dots-rotation takes --max-angle)"),
+    ("dots-translation", ["--blur", "1"], "--blur applies to shifted-images only, not to "
+                                          "dots-translation"),
+    ("dots-rotation", ["--motion-blur", "3"], "--motion-blur applies to shifted-images only"),
+    ("shifted-images", ["--video-step", "2"], "--video-step applies to video data only"),
+    ("dots-translation", ["--video-scale", "0.5"], "--video-scale applies to video data only"),
+    ("shifted-images", ["--output-units", "binary"],
+     "--output-units binary applies to dots data (dots-translation and dots-rotation) only, "
+     "not to shifted-images"),
+])
+def test_option_for_another_data_kind_is_refused(tmp_path, capsys, no_training, data, extra,
+                                                 message):
+    out = tmp_path / "m.npz"
+    args = _tiny(out, *extra)
+    args[args.index("--data") + 1] = data
+    assert main(args) == 2
+    assert message in _one_error_line(capsys)
+    assert not out.exists()
+
+
+def _video_args(tmp_path, *extra):
+    video = tmp_path / "clip.mp4"
+    video.write_bytes(b"")  # never read: the options are refused first
+    return ["train", "--data", str(video), "-o", str(tmp_path / "m.npz"), "-q", *extra]
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--output-units", "binary"], "--output-units binary applies to dots data"),
+    (["--curriculum", "10:1"], "--curriculum applies to dots-translation, dots-rotation and "
+                               "shifted-images, not to video data"),
+    (["--max-angle", "10"], "--max-angle applies to dots-rotation only, not to video data"),
+    (["--blur", "1"], "--blur applies to shifted-images only, not to video data"),
+    (["--eval-pairs", "500"], "--eval-pairs applies to generated data (dots-translation, "
+                              "dots-rotation and shifted-images) only, not to video data"),
+])
+def test_option_that_video_data_does_not_use_is_refused(tmp_path, capsys, monkeypatch, extra,
+                                                        message):
+    from bgsub.cli import train as train_cli
+
+    def refuse():
+        raise AssertionError("the videos were read before the options were checked")
+
+    monkeypatch.setattr(train_cli, "_imagedata", refuse)
+    assert main(_video_args(tmp_path, *extra)) == 2
+    assert message in _one_error_line(capsys)
+
+
+def test_video_data_takes_eval_pairs_0_and_its_own_options(tmp_path, monkeypatch):
+    # Accepted up to the point where the videos are read.
+    from bgsub.cli import train as train_cli
+
+    class Stop(BaseException):  # passes through main(), which turns Exception into a line
+        pass
+
+    def reached():
+        raise Stop
+
+    monkeypatch.setattr(train_cli, "_imagedata", reached)
+    with pytest.raises(Stop):
+        main(_video_args(tmp_path, "--eval-pairs", "0", "--video-step", "2", "--max-shift", "2",
+                         "--output-units", "gaussian"))
+
+
+def test_whiten_and_no_whiten_are_mutually_exclusive(tmp_path, capsys, no_training):
+    with pytest.raises(SystemExit) as stop:
+        main(_tiny(tmp_path / "m.npz", "--whiten", "--no-whiten"))
+    assert stop.value.code == 2
+    assert "--no-whiten: not allowed with argument --whiten" in capsys.readouterr().err
+
+
+def test_eval_pairs_help_says_video_has_none(capsys):
+    with pytest.raises(SystemExit):
+        main(["train", "--help"])
+    help_text = " ".join(capsys.readouterr().out.split())
+    assert "Not for video: its motion is unknown" in help_text
+    assert "results such as a report table" not in help_text

@@ -135,3 +135,40 @@ def test_read_middlebury_ground_truth(shared_data):
     known = np.isfinite(flow).all(axis=2)
     assert 0.5 < known.mean() < 1.0  # RubberWhale has occluded / unknown pixels
     assert np.abs(flow[known]).max() < 10  # small motions, as the README says
+
+
+def test_existing_file_message_speaks_to_api_and_cli(tmp_path):
+    path = write_flo(tmp_path / "f.flo", _field())
+    with pytest.raises(OutputError) as err:
+        write_flo(path, _field())
+    assert str(err.value) == (f"{path}: already exists (overwrite=True, or --overwrite on the "
+                              "command line, replaces it)")
+
+
+@pytest.mark.parametrize("shape", [(0, 0, 2), (0, 4, 2), (3, 0, 2)])
+def test_write_flo_says_an_empty_field_is_empty(tmp_path, shape):
+    with pytest.raises(ValueError, match=r"flow is empty \(shape"):
+        write_flo(tmp_path / "f.flo", np.zeros(shape, np.float32))
+    assert not (tmp_path / "f.flo").exists()
+
+
+def test_write_flo_wrong_shape_still_names_the_shape(tmp_path):
+    with pytest.raises(ValueError, match=r"must be \(H, W, 2\), got shape \(2, 3\)"):
+        write_flo(tmp_path / "f.flo", np.zeros((2, 3), np.float32))
+
+
+@pytest.mark.parametrize("bad", [0, 0.0, -1, float("nan"), float("inf")])
+def test_max_magnitude_must_be_above_zero(bad):
+    from bgsub.flowio import flow_picture
+
+    with pytest.raises(InputError, match="max_magnitude must be a number of pixels above 0"):
+        flow_to_color(_field(), max_magnitude=bad)
+    image = np.zeros((5, 7), np.uint8)
+    with pytest.raises(InputError, match="max_magnitude"):
+        flow_picture(_field(), image=image, arrows=True, max_magnitude=bad)
+
+
+def test_max_magnitude_none_is_automatic_and_small_values_work():
+    flow = _field()
+    assert flow_to_color(flow, max_magnitude=None).shape == (5, 7, 3)
+    assert flow_to_color(flow, max_magnitude=1e-3).shape == (5, 7, 3)

@@ -111,10 +111,23 @@ def test_absurd_scene_lengths_are_refused():
         SceneSpec("pan", n_frames=10**11)
 
 
-def test_odd_scene_sizes_are_refused():
-    # Its video would be padded to even and no longer match its frames and ground truth.
-    with pytest.raises(InputError, match="even"):
-        SceneSpec("pan", width=101, height=76)
+def test_odd_scene_sizes_render_in_memory_but_are_not_written(tmp_path):
+    # Nothing about rendering needs even sizes (bgsub bench renders in memory); only the
+    # written scene's .mp4 would be padded to even and no longer match its frames and truth.
+    spec = SceneSpec("pan", width=101, height=77, n_frames=3)
+    frames = _render(spec)
+    assert frames[0].image.shape == (77, 101, 3) and frames[-1].groundtruth.shape == (77, 101)
+    with pytest.raises(InputError, match=r"101x77 must be even .* the scene's \.mp4 .*100x76"):
+        generate_scene(spec, tmp_path / "out")
+    assert not (tmp_path / "out").exists()  # refused before anything was written
+
+
+def test_cli_odd_size_says_why_it_must_be_even(tmp_path, capsys):
+    assert main(["samples", str(tmp_path / "x"), "--size", "161x121", "-c", "pan"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and ".mp4 video" in err and "(e.g. 160x120)" in err
+    assert "video codecs need it" not in err
+    assert not (tmp_path / "x").exists()
 
 
 def test_objects_move_enter_and_leave():
@@ -223,7 +236,9 @@ def test_generate_scene_writes_the_cdnet_layout(tmp_path):
 def test_generate_scene_refuses_existing_output(tmp_path):
     spec = SceneSpec("static", seed=0, n_frames=3, **SMALL)
     generate_scene(spec, tmp_path)
-    with pytest.raises(OutputError):
+    # Said for API callers and command-line users alike.
+    with pytest.raises(OutputError, match=r"static_s0: already exists \(overwrite=True, or "
+                                          r"--overwrite on the command line, replaces it\)"):
         generate_scene(spec, tmp_path)
     generate_scene(spec, tmp_path, overwrite=True)
 

@@ -64,6 +64,30 @@ def test_bad_curriculum_text_is_an_input_error(text):
         Curriculum.parse(text)
 
 
+def test_curriculum_scaled_to_fewer_epochs_keeps_every_range():
+    default = Curriculum.parse("100:1,200:2")
+    assert default.scaled(1.0, epochs=400) == default  # the default epoch count: unchanged
+    assert str(default.scaled(3 / 400, epochs=3)) == "1:1,2:2"
+    assert str(default.scaled(150 / 400, epochs=150)) == "38:1,75:2"
+    assert str(default.scaled(2.0)) == "200:1,400:2"
+    # Too few epochs for every stage: stages that would get no epoch of their own go, and
+    # the full range always keeps the last epochs.
+    assert str(default.scaled(2 / 400, epochs=2)) == "1:1"
+    assert default.scaled(1 / 400, epochs=1).stages == ()
+    with pytest.raises(InputError):
+        default.scaled(0.0)
+
+
+def test_curriculum_says_what_a_short_run_never_reaches():
+    curriculum = Curriculum.parse("100:1,200:2,300:3")
+    assert curriculum.unreached(400, 4) == ((), None)  # everything runs
+    assert curriculum.unreached(300, 4) == ((), 3.0)  # 3 up to the end, never 4
+    assert curriculum.unreached(150, 4) == (((300, 3.0),), 2.0)
+    assert curriculum.unreached(100, 4) == (((200, 2.0), (300, 3.0)), 1.0)
+    # A last limit at (or above) the full range is the full range.
+    assert Curriculum.parse("10:1,20:5").unreached(15, 3) == ((), None)
+
+
 def test_rotated_dots_by_zero_and_ninety_degrees():
     src = RotatedDots(patch_size=9, max_angle=0.0)
     x, y, angles = src.sample(np.random.default_rng(3), 20)
@@ -266,8 +290,18 @@ def test_cli_train_writes_a_loadable_model_and_a_summary(tmp_path, capsys):
     model = GatedRBM.load(out)
     assert model.patch_size == 9 and model.n_factors == 20 and model.n_hidden == 10
     assert "patch_accuracy" in model.meta["held_out"]
-    text = capsys.readouterr().out
-    assert "trained 3 epochs" in text and "held-out patch accuracy" in text
+    captured = capsys.readouterr()
+    # The summary is notes on stderr ("bgsub: " like every command's), silenced by --quiet.
+    assert captured.out == ""
+    lines = captured.err.splitlines()
+    assert lines[0].startswith("bgsub: trained 3 epochs")
+    assert "bgsub: held-out patch accuracy: " in captured.err
+    assert lines[-1] == f"bgsub: model written to {out}"
+
+
+def test_cli_train_quiet_prints_nothing(tmp_path, capsys):
+    assert main(_tiny_train_args(tmp_path / "m.npz") + ["-q"]) == 0
+    assert capsys.readouterr() == ("", "")
 
 
 def test_cli_train_refuses_to_overwrite(tmp_path, capsys):

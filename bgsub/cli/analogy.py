@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from bgsub.cli.common import check_distinct, model_files, warn_if_binary_model
+from bgsub.cli.common import check_distinct, model_files, note, warn_if_binary_model
 from bgsub.errors import InputError, OutputError
 
 # --zoom enlarges a patch-sized result for viewing (13 px x 64 = 832 px); far more only costs
@@ -57,7 +57,9 @@ def register(subparsers: Any) -> None:
                         help=f"enlarge the output N times (nearest neighbour), for viewing; 1 to "
                              f"{MAX_ZOOM}, and at most {MAX_OUTPUT_SIDE} px a side (default 1)")
     parser.add_argument("--overwrite", action="store_true", help="replace an existing output")
-    parser.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
+    parser.add_argument("-q", "--quiet", action="store_true",
+                        help="no note on stderr of what was written (warnings and errors are "
+                             "still printed)")
     parser.set_defaults(handler=run)
 
 
@@ -141,6 +143,7 @@ def run(args: argparse.Namespace) -> int:
     if args.zoom > 1:
         picture = np.kron(picture, np.ones((args.zoom, args.zoom), np.uint8))
     write_image(args.output, picture)
-    if not args.quiet:
-        print(f"wrote {args.output} ({picture.shape[1]}x{picture.shape[0]})")
+    zoomed = (f" ({picture.shape[1]}x{picture.shape[0]} with --zoom {args.zoom})"
+              if args.zoom > 1 else "")
+    note(f"analogy of {w}x{h} written to {args.output}{zoomed}", quiet=args.quiet)
     return 0

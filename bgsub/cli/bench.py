@@ -36,7 +36,9 @@ def register(subparsers: Any) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--size", default="320x240", metavar="WxH",
-                        help="frame size (default: 320x240)")
+                        help="frame size, at least 16x16, odd sizes too: nothing is written "
+                             "(default: 320x240; below 64x48, the smallest sample scene, the "
+                             "clip is a panning random texture)")
     parser.add_argument("-m", "--methods", default=None, metavar="M1,M2",
                         help="comma-separated engines (default: all registered; see "
                              "`bgsub methods`)")
@@ -50,7 +52,8 @@ def register(subparsers: Any) -> None:
                         help="also report peak memory (ru_maxrss), each method in its own process")
     parser.add_argument("--seed", type=int, default=0, help="seed of the generated clip")
     parser.add_argument("--json", action="store_true", help="print the report as JSON")
-    parser.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("-q", "--quiet", action="store_true",
+                        help="no progress bar (the report is still printed)")
     parser.set_defaults(handler=run)
 
 

@@ -9,7 +9,7 @@ from typing import List, Optional, Tuple
 
 from bgsub.cli.common import add_output_options, note, progress
 from bgsub.errors import InputError, OutputError
-from bgsub.samples import CATEGORIES, SceneSpec, generate_scene
+from bgsub.samples import CATEGORIES, SceneSpec, check_video_size, generate_scene
 
 _DESCRIPTION = """\
 Write synthetic scenes with exact ground truth, in the CDnet 2014 layout: a textured world seen
@@ -51,7 +51,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                              "fifth, at most 24, is an object-free warm-up outside the "
                              "temporal ROI)")
     parser.add_argument("--size", default="320x240", metavar="WxH",
-                        help="frame size (default: 320x240)")
+                        help="frame size, at least 64x48, both even for the scene's .mp4 "
+                             "(default: 320x240)")
     parser.add_argument("--list", action="store_true",
                         help="print the categories and exit")
     add_output_options(parser)
@@ -111,6 +112,7 @@ def run(args: argparse.Namespace) -> int:
     specs = [SceneSpec(category, seed=seed, width=width, height=height, n_frames=args.frames)
              for category in _categories(args.category, dir_given)
              for seed in _seeds(args.seed, dir_given)]
+    check_video_size(width, height)  # before anything is written (generate_scene checks it too)
     out_dir = Path(args.dir if dir_given else _DEFAULT_DIR)
     if out_dir.exists() and not out_dir.is_dir():
         raise OutputError(f"{out_dir} exists and is not a folder")

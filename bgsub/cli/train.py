@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 from typing import Any, Callable, Dict, List, Optional, Tuple
 
-from bgsub.cli.common import check_distinct, note
+from bgsub.cli.common import check_distinct, note, warn
 from bgsub.errors import InputError, OutputError
 
 DOTS = ("dots-translation", "dots-rotation")
@@ -31,7 +31,8 @@ Data (--data):
                      shifted-images.
 
 For dots the summary reports held-out accuracy on 1,000 fresh pairs; for shifted-images the
-fraction of held-out photo patches whose displacement is found within 1 px.
+fraction of held-out photo patches whose displacement is found within 1 px; for video nothing
+(the true motion of its pairs is unknown).
 """
 
 _EPILOG = """\
@@ -68,11 +69,14 @@ def register(subparsers: Any) -> None:
     model.add_argument("--factors", type=int, default=200, metavar="F", help="factors (default 200)")
     model.add_argument("--hidden", type=int, default=100, metavar="K", help="mapping units (default 100)")
     model.add_argument("--output-units", choices=("binary", "gaussian"), default=None,
-                       help="default: binary for dots, gaussian for images")
-    model.add_argument("--whiten", dest="whiten", action="store_true", default=None,
-                       help="PCA-whiten patches (default for images)")
-    model.add_argument("--no-whiten", dest="whiten", action="store_false",
-                       help="train on contrast-normalised pixels")
+                       help="default: binary for dots, gaussian for images and video (binary "
+                            "units take dots only: image patches are contrast-normalised)")
+    whiten = model.add_mutually_exclusive_group()
+    whiten.add_argument("--whiten", dest="whiten", action="store_true", default=None,
+                        help="PCA-whiten patches (default for images and video)")
+    whiten.add_argument("--no-whiten", dest="whiten", action="store_false",
+                        help="train on the pixels themselves, contrast-normalised for images and "
+                             "video (default for dots)")
     model.add_argument("--normalize-filters", action="store_true",
                        help="keep input/output filters at a common norm (stabilises Gaussian units)")
 
@@ -86,8 +90,9 @@ def register(subparsers: Any) -> None:
     train.add_argument("--lr", type=float, default=None,
                        help="learning rate (default 0.05 for dots, 0.003 for images)")
     train.add_argument("--lr-schedule", choices=("constant", "linear"), default=None,
-                       help="linear: decay to lr/10 over the second half (default: linear for "
-                            "dots with --max-shift > 1, else constant)")
+                       help="linear: decay to lr/10 over the second half (default: linear with a "
+                            "curriculum, which dots-translation with --max-shift > 1 has by "
+                            "default, else constant)")
     train.add_argument("--momentum", type=float, default=0.9, help="default 0.9")
     train.add_argument("--weight-decay", type=float, default=1e-4, help="default 1e-4")
     train.add_argument("--sparsity", type=float, default=0.02, metavar="P",
@@ -99,28 +104,38 @@ def register(subparsers: Any) -> None:
                        help="one fixed training set (the paper) instead of fresh pairs every epoch")
     train.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
 
-    data = parser.add_argument_group("data")
+    data = parser.add_argument_group(
+        "data", "options for some data kinds only; given with another kind, they are refused")
     data.add_argument("--max-shift", type=float, default=None, metavar="PX",
-                      help="largest |dx|, |dy|, at most half of --patch-size "
-                           "(default 1 for dots, 3 for images)")
-    data.add_argument("--max-angle", type=float, default=30.0, metavar="DEG",
-                      help="rotation range for dots-rotation, up to 180 (default 30)")
+                      help="dots-translation, shifted-images: largest |dx|, |dy| trained on; "
+                           "video: the range the model reads motion in. At most half of "
+                           "--patch-size (default 1 for dots-translation, 3 for images and video)")
+    data.add_argument("--max-angle", type=float, default=None, metavar="DEG",
+                      help="dots-rotation: rotation range, up to 180 (default 30)")
     data.add_argument("--curriculum", default=None, metavar="E:L,...",
-                      help="grow the range: e.g. 100:1,200:2 = at most 1 before epoch 100, 2 before 200, "
-                           "then all (default for dots with --max-shift > 1: 100:1,200:2,...)")
+                      help="dots, shifted-images: grow the range, e.g. 100:1,200:2 = at most 1 "
+                           "before epoch 100, 2 before 200, then all (default for "
+                           "dots-translation with --max-shift > 1: one stage per extra pixel, "
+                           "100:1,200:2 for --max-shift 3 and its default 400 epochs, scaled to "
+                           "--epochs when that is given)")
     data.add_argument("--blur", default=None, metavar="S1,S2",
                       help="shifted-images: also train on the photos blurred by Gaussians of these "
                            "sigmas in px (soft or compressed footage), e.g. 1,2")
-    data.add_argument("--motion-blur", type=int, default=0, metavar="PX",
+    data.add_argument("--motion-blur", type=int, default=None, metavar="PX",
                       help="shifted-images: also train on the photos box-blurred over PX pixels "
                            "horizontally and vertically (a shaking or panning camera)")
-    data.add_argument("--video-step", type=int, default=1, metavar="N", help="use every N-th video frame")
-    data.add_argument("--video-scale", type=float, default=None, metavar="F", help="resize video frames")
-    data.add_argument("--eval-pairs", type=int, default=1000, metavar="N",
-                      help="held-out pairs for the summary (default 1000; 0 skips)")
+    data.add_argument("--video-step", type=int, default=None, metavar="N",
+                      help="video: use every N-th frame (default 1)")
+    data.add_argument("--video-scale", type=float, default=None, metavar="F",
+                      help="video: resize the frames by this factor")
+    data.add_argument("--eval-pairs", type=int, default=None, metavar="N",
+                      help="dots, shifted-images: held-out pairs scored for the summary "
+                           "(default 1000; 0 skips). Not for video: its motion is unknown")
 
     parser.add_argument("--overwrite", action="store_true", help="replace an existing model file")
-    parser.add_argument("-q", "--quiet", action="store_true", help="no progress bar and no summary")
+    parser.add_argument("-q", "--quiet", action="store_true",
+                        help="no progress bar and no notes on stderr (the training summary); "
+                             "warnings and errors are still printed")
     parser.set_defaults(handler=run)
 
 
@@ -140,6 +155,49 @@ def _default_curriculum(max_range: float, step_epochs: int = 100) -> str:
     """|d| <= 1 for 100 epochs, <= 2 for the next 100, ... up to the full range."""
     stages = [f"{step_epochs * k}:{k}" for k in range(1, int(math.ceil(max_range)))]
     return ",".join(stages)
+
+
+def _default_epochs(kind: str, max_shift: float) -> int:
+    """--epochs when not given."""
+    if kind == "dots-translation":
+        # One curriculum stage of 100 epochs per extra pixel, then 200 on the full range.
+        return 150 if max_shift <= 1 else 100 * (int(math.ceil(max_shift)) - 1) + 200
+    return 150 if kind == "dots-rotation" else 200
+
+
+def _fit_curriculum(curriculum: Any, args: argparse.Namespace, kind: str, *, max_shift: float,
+                    epochs: int, default_epochs: int) -> Any:
+    """The curriculum to train with, fitted to the epoch count.
+
+    The default stages (``args.curriculum`` None) are laid out for the default epoch count:
+    for other counts they are spread over the epochs asked for, so that every range, the full
+    one last, is trained (the default epoch count keeps them as they are). A curriculum the user
+    gave is kept, with a warning when part of it lies beyond the last epoch.
+    """
+    if not curriculum.stages:
+        return curriculum
+    if args.curriculum is None:
+        if epochs == default_epochs:
+            return curriculum
+        scaled = curriculum.scaled(epochs / default_epochs, epochs=epochs)
+        note(f"default curriculum {curriculum} (for {default_epochs} epochs) scaled to --epochs "
+             f"{epochs}: {str(scaled) or 'none (the full range from the start)'}",
+             quiet=args.quiet)
+        return scaled
+    rotation = kind == "dots-rotation"
+    full = args.max_angle if rotation else max_shift
+    idle, last = curriculum.unreached(epochs, full)
+    problems = []
+    if last is not None:
+        problems.append(f"the range stays at {last:g} to the end and never reaches the full "
+                        f"{'--max-angle' if rotation else '--max-shift'} {full:g}")
+    if idle:
+        problems.append(f"{'stage' if len(idle) == 1 else 'stages'} "
+                        f"{','.join(f'{u}:{l:g}' for u, l in idle)} never "
+                        f"{'runs' if len(idle) == 1 else 'run'}")
+    if problems:
+        warn(f"--curriculum {curriculum} reaches beyond --epochs {epochs}: " + "; ".join(problems))
+    return curriculum
 
 
 def _imagedata():
@@ -187,6 +245,46 @@ def _check_options(args: argparse.Namespace) -> None:
     if args.batch > args.pairs:
         raise InputError(f"--batch {args.batch} is larger than --pairs {args.pairs}: "
                          "an epoch must hold at least one minibatch")
+
+
+# Options that only some data kinds use: (flag, the kinds that take it, what to say instead).
+# Their defaults are None, so that an option given with another kind is refused rather than
+# silently ignored.
+_KIND_OPTIONS: Tuple[Tuple[str, Tuple[str, ...], str], ...] = (
+    ("--max-shift", ("dots-translation", IMAGES, "video"), "dots-rotation takes --max-angle"),
+    ("--max-angle", ("dots-rotation",), ""),
+    ("--curriculum", DOTS + (IMAGES,), "video pairs have no range to grow"),
+    ("--blur", (IMAGES,), ""),
+    ("--motion-blur", (IMAGES,), ""),
+    ("--video-step", ("video",), ""),
+    ("--video-scale", ("video",), ""),
+)
+
+
+def _kind_name(kind: str) -> str:
+    return "video data" if kind == "video" else kind
+
+
+def _kinds_text(kinds: Tuple[str, ...]) -> str:
+    names = [_kind_name(k) for k in kinds]
+    return names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
+
+
+def _check_kind_options(args: argparse.Namespace, kind: str) -> None:
+    """Refuse options the data kind does not use (they would be silently ignored)."""
+    for flag, kinds, hint in _KIND_OPTIONS:
+        if getattr(args, flag[2:].replace("-", "_")) is not None and kind not in kinds:
+            only = " only" if len(kinds) == 1 else ""
+            raise InputError(f"{flag} applies to {_kinds_text(kinds)}{only}, not to "
+                             f"{_kind_name(kind)}" + (f" ({hint})" if hint else ""))
+    if args.output_units == "binary" and kind not in DOTS:
+        raise InputError(f"--output-units binary applies to dots data ({_kinds_text(DOTS)}) only, "
+                         f"not to {_kind_name(kind)}: its patches are contrast-normalised real "
+                         "values, which need gaussian units (the default)")
+    if kind == "video" and args.eval_pairs:  # 0 asks for what video gets anyway: nothing
+        raise InputError("--eval-pairs applies to generated data (dots-translation, dots-rotation "
+                         "and shifted-images) only, not to video data: the true motion of video "
+                         "pairs is unknown, so there is nothing to score")
 
 
 def _max_shift(args: argparse.Namespace, kind: str) -> float:
@@ -280,24 +378,26 @@ def run(args: argparse.Namespace) -> int:
     # Every check first: a mistake must not cost a training run.
     kind = _data_kind(args.data)
     _check_options(args)
+    _check_kind_options(args, kind)
+    # The defaults of the options only some kinds take (None above: "not given").
+    args.max_angle = 30.0 if args.max_angle is None else args.max_angle
+    args.motion_blur = args.motion_blur or 0
+    args.video_step = args.video_step or 1
+    eval_pairs = 1000 if args.eval_pairs is None else args.eval_pairs
     max_shift = _max_shift(args, kind)
     blur = _sigmas(args.blur) if args.blur else ()
     out = _check_output(args, kind)
     dots = kind in DOTS
 
+    default_epochs = _default_epochs(kind, max_shift)
+    epochs = args.epochs if args.epochs is not None else default_epochs
     curriculum_text = args.curriculum
     if curriculum_text is None and kind == "dots-translation" and max_shift > 1:
         curriculum_text = _default_curriculum(max_shift)
     curriculum = Curriculum.parse(curriculum_text)
-    if args.epochs is not None:
-        epochs = args.epochs
-    elif kind == "dots-translation":
-        # One curriculum stage of 100 epochs per extra pixel, then 200 on the full range.
-        epochs = 150 if max_shift <= 1 else 100 * (int(math.ceil(max_shift)) - 1) + 200
-    elif kind == "dots-rotation":
-        epochs = 150
-    else:
-        epochs = 200
+    has_curriculum = bool(curriculum.stages)  # before scaling, which may leave no stage
+    curriculum = _fit_curriculum(curriculum, args, kind, max_shift=max_shift, epochs=epochs,
+                                 default_epochs=default_epochs)
 
     config = TrainConfig(
         patch_size=args.patch_size,
@@ -312,7 +412,7 @@ def run(args: argparse.Namespace) -> int:
         batch_size=args.batch,
         cd_k=args.cd_k,
         lr=args.lr if args.lr is not None else (0.05 if dots else 0.003),
-        lr_schedule=args.lr_schedule or ("linear" if curriculum.stages else "constant"),
+        lr_schedule=args.lr_schedule or ("linear" if has_curriculum else "constant"),
         momentum=args.momentum,
         weight_decay=args.weight_decay,
         sparsity_target=args.sparsity,
@@ -346,7 +446,7 @@ def run(args: argparse.Namespace) -> int:
     model = describe(result.model)
 
     try:
-        scores = _evaluate(kind, model, max_shift=max_shift, max_angle=args.max_angle, n=args.eval_pairs)
+        scores = _evaluate(kind, model, max_shift=max_shift, max_angle=args.max_angle, n=eval_pairs)
     except KeyboardInterrupt:  # training is complete: keep it, without the held-out scores
         return _save_interrupted(model, out, "during the held-out evaluation",
                                  "the fully trained model (without held-out scores)")
@@ -354,16 +454,12 @@ def run(args: argparse.Namespace) -> int:
         model.meta["held_out"] = scores
     _save(model, out)
 
-    if not args.quiet:
-        lines = [
-            f"trained {epochs} epochs of {args.pairs} pairs in {result.seconds:.1f} s "
-            f"({result.seconds / max(1, result.epochs_run):.2f} s/epoch)",
-            f"final reconstruction error {result.errors[-1]:.4f} per pixel",
-        ]
-        lines += [f"held-out {k.replace('_', ' ')}: {_fmt(v)}" for k, v in scores.items()]
-        lines.append(f"model written to {out}")
-        for line in lines:
-            print(line)
+    note(f"trained {epochs} epochs of {args.pairs} pairs in {result.seconds:.1f} s "
+         f"({result.seconds / max(1, result.epochs_run):.2f} s/epoch)", quiet=args.quiet)
+    note(f"final reconstruction error {result.errors[-1]:.4f} per pixel", quiet=args.quiet)
+    for key, value in scores.items():
+        note(f"held-out {key.replace('_', ' ')}: {_fmt(value)}", quiet=args.quiet)
+    note(f"model written to {out}", quiet=args.quiet)
     return 0
 
 

@@ -384,7 +384,7 @@ class TileLayout:
             if tile.ndim == 2:
                 tile = cv2.cvtColor(tile, cv2.COLOR_GRAY2BGR)
             _draw_label(tile, label)
-            # A thin grey frame keeps neighbouring white masks apart.
+            # A thin gray frame keeps neighbouring white masks apart.
             cv2.rectangle(tile, (0, 0), (tile.shape[1] - 1, tile.shape[0] - 1), (96, 96, 96), 1)
             r, c = divmod(k, self.columns)
             y, x = r * self.tile_height, c * self.tile_width

@@ -40,7 +40,7 @@ Predictions
     ``skip_first`` leaves out the video's first frame. Folders and Python masks name their frames
     themselves: giving these options with them is an error (ignoring them would hide that the
     user expected something to shift). A pixel is foreground when its value is > 127 (colour
-    masks are converted to grey first). For a dataset, the prediction of
+    masks are converted to gray first). For a dataset, the prediction of
     the sequence at ``GT_ROOT/REL`` (``REL`` = its path relative to the root, e.g.
     ``cameraJitter/traffic``; ``NAME`` = its folder name) is the first that exists of
     ``PRED_ROOT/REL/``, ``PRED_ROOT/NAME/``, ``PRED_ROOT/REL.<ext>``, ``PRED_ROOT/NAME.<ext>``

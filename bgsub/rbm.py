@@ -325,7 +325,8 @@ class GatedRBM:
         """
         path = Path(path)
         if path.exists() and not overwrite:
-            raise OutputError(f"{path} exists (use --overwrite to replace it)")
+            raise OutputError(f"{path}: already exists (--overwrite, or overwrite=True, "
+                              "replaces it)")
         header = {
             "patch_size": self.patch_size,
             "output_units": self.output_units,

@@ -118,7 +118,8 @@ def check_file_output(path: PathLike, *, overwrite: bool = False) -> Path:
     if output.is_dir():
         raise OutputError(f"{output}: is a folder; give a file name")
     if output.exists() and not overwrite:
-        raise OutputError(f"{output}: already exists (use --overwrite to replace it)")
+        raise OutputError(f"{output}: already exists (--overwrite, or overwrite=True, replaces "
+                          "it)")
     _check_writable_folder(output.parent, output)  # Path("x").parent is Path(".")
     return output
 

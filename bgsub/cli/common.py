@@ -37,12 +37,13 @@ def source_kwargs(args: argparse.Namespace) -> dict:
                 width=args.width, fps=args.fps)
 
 
-def add_output_options(parser: argparse.ArgumentParser) -> None:
+def add_output_options(parser: argparse.ArgumentParser, *,
+                       quiet_help: str = "no progress bar and no notes on stderr (warnings, "
+                                         "errors and the results are still printed)") -> None:
+    """``--overwrite`` and ``-q/--quiet``; ``quiet_help`` says what ``-q`` silences."""
     parser.add_argument("--overwrite", action="store_true",
                         help="replace outputs that already exist (refused otherwise)")
-    parser.add_argument("-q", "--quiet", action="store_true",
-                        help="no progress bar and no notes on stderr (results such as "
-                             "a report table are still printed)")
+    parser.add_argument("-q", "--quiet", action="store_true", help=quiet_help)
 
 
 def progress(iterable: Iterable[Any], *, total: Optional[int] = None, desc: str = "",

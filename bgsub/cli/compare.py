@@ -91,7 +91,8 @@ def register(subparsers: Any) -> None:
     outputs.add_argument("--tile-height", type=int, default=180, metavar="PX",
                          help="height of each tile of side_by_side.mp4; frames are never "
                               "enlarged and the file size grows with it (default: 180)")
-    add_output_options(parser)
+    add_output_options(parser, quiet_help="no progress bar and no notes on stderr (the report "
+                                          "table, warnings and errors are still printed)")
     add_source_options(parser)
     parser.add_argument(
         "--max-frames", type=int, default=None, metavar="N",

@@ -76,7 +76,8 @@ def register(subparsers: Any) -> None:
     est.add_argument("--stride", type=int, default=6, metavar="PX",
                      help="patch grid step, at least 1 (default 6; smaller = finer field, slower)")
     add_source_options(parser)
-    add_output_options(parser)
+    add_output_options(parser, quiet_help="no progress bar and no notes on stderr (warnings "
+                                          "and errors are still printed)")
     parser.set_defaults(handler=run)
 
 

@@ -87,7 +87,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                              "camera_motion.npy (identity first; NaN where none was measured; "
                              "moving-camera engines)")
     common.add_source_options(parser)
-    common.add_output_options(parser)
+    common.add_output_options(parser, quiet_help="no progress bar and no notes on stderr "
+                                                 "(warnings and errors are still printed)")
     parser.set_defaults(handler=run)
 
 

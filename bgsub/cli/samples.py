@@ -55,7 +55,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                              "(default: 320x240)")
     parser.add_argument("--list", action="store_true",
                         help="print the categories and exit")
-    add_output_options(parser)
+    add_output_options(parser, quiet_help="no progress bar, no list of the scenes written and "
+                                          "no notes (warnings and errors are still printed)")
     parser.set_defaults(handler=run)
 
 

@@ -23,7 +23,7 @@ from typing import Any, Callable, Dict, Iterable, List, Optional
 
 import numpy as np
 
-from bgsub.errors import InputError
+from bgsub.errors import InputError, describe_shape
 
 # Modules whose import registers the built-in engines (imported on first use of the registry,
 # so `import bgsub` stays light).
@@ -78,14 +78,9 @@ def check_frame(image: Any, *, shape: Optional[tuple] = None) -> np.ndarray:
     if image.ndim == 3 and image.shape[2] == 1:
         image = image[:, :, 0]
     if shape is not None and image.shape != tuple(shape):
-        raise InputError(f"frames changed from {_describe(tuple(shape))} to "
-                         f"{_describe(image.shape)} (a new stream needs a new engine)")
+        raise InputError(f"frames changed from {describe_shape(tuple(shape))} to "
+                         f"{describe_shape(image.shape)} (a new stream needs a new engine)")
     return image
-
-
-def _describe(shape: tuple) -> str:
-    """``"320x240 BGR"`` or ``"320x240 gray"`` for a frame shape."""
-    return f"{shape[1]}x{shape[0]} {'gray' if len(shape) == 2 else 'BGR'}"
 
 
 def check_learning_rate(learning_rate: Any, *, default: float = -1.0) -> float:

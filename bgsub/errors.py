@@ -44,3 +44,11 @@ def given_path(path: Union[str, "os.PathLike[str]"], *, what: str, hint: str,
     if not text.strip():
         raise error(f"the {what} path is empty; give {hint}")
     return text
+
+
+def describe_shape(shape: tuple) -> str:
+    """A frame shape as a user reads it: ``"320x240 gray"`` for (H, W) or (H, W, 1),
+    ``"320x240 BGR"`` for (H, W, 3), ``"320x240 with 4 channels"`` otherwise."""
+    c = shape[2] if len(shape) == 3 else 1
+    kind = "gray" if c == 1 else "BGR" if c == 3 else f"with {c} channels"
+    return f"{shape[1]}x{shape[0]} {kind}"

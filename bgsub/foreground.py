@@ -33,7 +33,7 @@ from typing import Optional
 import cv2
 import numpy as np
 
-from bgsub.errors import InputError
+from bgsub.errors import InputError, describe_shape
 from bgsub.global_motion import apply_homography, is_affine, is_identity
 
 __all__ = [
@@ -129,8 +129,8 @@ class CompensatedBackground:
         if self.mean is not None:
             h, w, c = self.mean.shape
             if shape[:2] != (h, w) or (shape[2] if len(shape) == 3 else 1) != c:
-                raise InputError(f"the frame is {_describe(shape)}, the background model "
-                                 f"{_describe((h, w, c))} (reset() it for another stream)")
+                raise InputError(f"the frame is {describe_shape(shape)}, the background model "
+                                 f"{describe_shape((h, w, c))} (reset() it for another stream)")
 
     def reset(self, frame: np.ndarray) -> None:
         """Start over from ``frame`` ((H, W, C) or (H, W) uint8): every pixel age 0."""
@@ -300,13 +300,6 @@ def _frame_shape(frame: np.ndarray) -> tuple:
         raise InputError(f"a background-model frame must be (H, W) or (H, W, C), not shape "
                          f"{shape}")
     return shape
-
-
-def _describe(shape: tuple) -> str:
-    """``"320x240 with 3 channels"`` for an (H, W, C) shape, ``"320x240 gray"`` for (H, W) or
-    (H, W, 1)."""
-    c = shape[2] if len(shape) == 3 else 1
-    return f"{shape[1]}x{shape[0]} " + ("gray" if c == 1 else f"with {c} channels")
 
 
 def _channels(a: np.ndarray, c: int) -> np.ndarray:

@@ -4,7 +4,7 @@ import cv2
 import numpy as np
 import pytest
 
-from bgsub.errors import InputError
+from bgsub.errors import InputError, describe_shape
 from bgsub.foreground import (
     BackgroundParams,
     CompensatedBackground,
@@ -232,8 +232,15 @@ def _reset_model(shape=(40, 50, 3)):
 @pytest.mark.parametrize("shape", [(40, 60, 3), (40, 50), (40, 50, 4)])
 def test_frames_of_another_size_or_channel_count_are_refused(method, shape):
     bg = _reset_model()
-    with pytest.raises(InputError, match=r"the frame is .*, the background model 50x40 with 3"):
+    with pytest.raises(InputError, match=r"the frame is .*, the background model 50x40 BGR"):
         getattr(bg, method)(np.full(shape, 100, np.uint8))
+
+
+@pytest.mark.parametrize("shape, words", [((40, 50), "50x40 gray"), ((40, 50, 1), "50x40 gray"),
+                                          ((40, 50, 3), "50x40 BGR"),
+                                          ((40, 50, 4), "50x40 with 4 channels")])
+def test_shapes_are_described_as_a_user_reads_them(shape, words):
+    assert describe_shape(shape) == words
 
 
 def test_a_gray_model_takes_h_w_and_h_w_1_frames():

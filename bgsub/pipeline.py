@@ -44,7 +44,7 @@ from bgsub.foreground import (
 from bgsub.global_motion import MODELS, GlobalMotion, apply_homography, fit_global_motion
 
 __all__ = ["MovingCameraEngine", "GrbmEngine", "CompensatedEngine", "MotionResult",
-           "GRBM_TUNED", "limited_threads"]
+           "GRBM_TUNED", "limited_threads", "spans_frame"]
 
 
 # The narrowest working frame: a few 13x13 patches across, so a motion can be read at all.
@@ -167,6 +167,32 @@ class MotionResult:
     violation_weights: Optional[np.ndarray] = None
 
 
+#: Why a fit was refused by :func:`spans_frame` (``last_status`` reads "fallback: " + this).
+SMALL_REGION = "motion seen on only a small part of the frame (an object's; camera taken as still)"
+
+
+def spans_frame(result: MotionResult, shape: tuple, min_extent: float) -> bool:
+    """Whether ``result``'s RANSAC inliers reach across at least ``min_extent`` of the frame's
+    width or of its height (``shape`` is ``(H, W)``), as a camera's motion does.
+
+    When only one compact region has texture (a textured object over sky, snow or a blank
+    wall), its motion is the only one measured, and RANSAC fits it as the camera's: the object
+    would then be the background and never found. Nothing in the frame tells a camera moving
+    over such a scene from a still camera watching the object, and a background subtractor
+    serves its user better by reporting the object. A fit with no inliers (a repeated frame's)
+    passes. The engines then take the camera as still: a previous motion may have been a
+    mixture of the object's and the blank background's readings.
+    """
+    inl = result.motion.inliers & (result.weights > 0)
+    if not inl.any():
+        return True
+    pts = result.points[inl]
+    h, w = shape[:2]
+    span_x = float(pts[:, 0].max() - pts[:, 0].min()) / max(w - 1, 1)
+    span_y = float(pts[:, 1].max() - pts[:, 1].min()) / max(h - 1, 1)
+    return max(span_x, span_y) >= min_extent
+
+
 _NONE = np.zeros((0, 2), np.float32)
 #: The motion of a repeated frame: none, measured from no correspondences.
 _NO_MOTION = MotionResult(_NONE, _NONE, np.zeros(0, np.float32), GlobalMotion.identity(0))
@@ -200,6 +226,10 @@ class MovingCameraEngine(Engine):
     learning_rate : float
         The background model's rate when :meth:`apply` is given none (negative: its own;
         see :meth:`CompensatedBackground.update`).
+    min_extent : float
+        A fitted motion whose inliers span less than this fraction of the frame's width and of
+        its height is refused as an object's (:func:`spans_frame`), and the camera is taken as
+        still for that frame (0 = never refused).
     still_cue : float
         Weight of :func:`still_in_image_map` (an object the camera follows stays put in the
         image); the violation map is the larger of the two (0 = flow violation only).
@@ -242,6 +272,7 @@ class MovingCameraEngine(Engine):
         overlap: int = 1,
         still_cue: float = 1.0,
         learning_rate: float = -1.0,
+        min_extent: float = 0.33,
     ) -> None:
         if 0 < work_width < MIN_WORK_WIDTH:
             # Refused here, before any output is opened, rather than at the first frame.
@@ -267,6 +298,7 @@ class MovingCameraEngine(Engine):
         self.overlap = int(overlap)
         self.still_cue = float(still_cue)
         self.learning_rate = float(learning_rate)
+        self.min_extent = float(min_extent)
         self.last_status = "ok"
         self._worker: Optional[concurrent.futures.ThreadPoolExecutor] = None
         # The previous frame as the front end keeps it (see _frame_data), working size.
@@ -386,19 +418,29 @@ class MovingCameraEngine(Engine):
                 self._last_flow = None
             else:
                 result = self._motion(self._prev, cur, self._prev_motion)
+        small = (self.min_extent > 0 and result.motion.ok
+                 and not spans_frame(result, gray.shape, self.min_extent))
+        if small:
+            result = dataclasses.replace(result, motion=GlobalMotion.identity(
+                len(result.points), ok=False, reason=SMALL_REGION))
         self._last = result
         status = "ok"
         matrix = result.motion.matrix
         if not result.motion.ok:
             status = f"fallback: {result.motion.reason}"
             matrix = self._prev_motion if self._prev_motion is not None else np.eye(3)
+            if small:
+                matrix = np.eye(3)  # see spans_frame
 
         # 4. The background compared in this frame's coordinates, while the other thread
         # makes the violation map.
         violation: list = []
         prev_gray = self._prev_gray
+        # The refused region's vectors are one consistent motion, not noise around the camera's:
+        # their spread must not raise the violation threshold.
+        noise = 0.0 if small else self.violation_noise
         with self._alongside(lambda: violation.append(
-                self._violation_map(result, matrix, prev_gray, gray))):
+                self._violation_map(result, matrix, prev_gray, gray, noise))):
             self.bg.warp(matrix)
             score = self.bg.score(work)
         if self._is_scene_cut(score, result):
@@ -427,16 +469,17 @@ class MovingCameraEngine(Engine):
         return mask
 
     def _violation_map(self, result: MotionResult, matrix: np.ndarray, prev_gray: np.ndarray,
-                       gray: np.ndarray) -> Optional[np.ndarray]:
+                       gray: np.ndarray, noise: float) -> Optional[np.ndarray]:
         """``(h, w) float32`` in [0, 1]: the evidence that a pixel moves otherwise than the
-        camera (``matrix``): the flow violation of ``result``'s vectors and the still-in-image
-        cue of the two gray frames, whichever is larger. None when the fusion ignores it."""
+        camera (``matrix``): the flow violation of ``result``'s vectors (``noise``: the
+        threshold's robust-sigma multiple) and the still-in-image cue of the two gray frames,
+        whichever is larger. None when the fusion ignores it."""
         if self.flow_boost == 0.0 and self.flow_damp == 0.0:
             return None
         weights = result.weights if result.violation_weights is None else result.violation_weights
         v = flow_violation_map(result.points, result.disp, matrix, weights=weights,
                                shape=gray.shape, threshold=self.violation_threshold,
-                               noise_scale=self.violation_noise)
+                               noise_scale=noise)
         if self.still_cue > 0:
             # Either kind of motion evidence counts: the cue is near 0 where it has none (a
             # still camera, the background), so it never lowers the flow's.
@@ -860,6 +903,10 @@ _COMMON = {
     "overlap": Param(1, "1 = update the background and prepare the frame for the next pair "
                         "in a second thread while the motion is measured (same masks, faster "
                         "on 2 or more cores); 0 = one thread", low=0, high=1),
+    "min_extent": Param(0.33, "a camera motion must be seen across at least this fraction of "
+                              "the frame's width or height; one seen only on a smaller region "
+                              "(a textured object over a blank background) is taken as the "
+                              "object's, and the camera as still (0 = off)", low=0, high=1),
     "still_cue": Param(1.0, "weight of the evidence that a pixel stays put in the image while "
                             "the camera moves (an object the camera follows; 0 = off)",
                        low=0, high=1),

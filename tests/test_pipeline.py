@@ -6,6 +6,8 @@ import pytest
 
 from bgsub.engines import create_engine, get_engine_spec
 from bgsub.errors import InputError
+from bgsub.global_motion import GlobalMotion
+from bgsub.pipeline import SMALL_REGION, MotionResult, spans_frame
 from test_flowfield import OracleMatcher
 
 
@@ -121,6 +123,75 @@ def test_an_object_the_camera_follows_is_found(name):
     with_cue, without = f_measure(), f_measure(still_cue=0.0)
     assert with_cue > 0.7, with_cue
     assert with_cue > without + 0.1, (with_cue, without)
+
+
+def _over_blank(n=14, h=180, w=240):
+    """A still camera over a blank, slightly noisy background, and the only texture in the
+    frame: a square moving 3 px per frame (a textured object against sky or a white wall)."""
+    rng = np.random.default_rng(3)
+    thing = _world(seed=7)[:40, :40]
+    for k in range(n):
+        frame = np.clip(120 + rng.normal(0, 2, (h, w, 3)), 0, 255).astype(np.uint8)
+        x0 = 40 + 3 * k
+        frame[70:110, x0:x0 + 40] = thing
+        gt = np.zeros((h, w), np.uint8)
+        gt[70:110, x0:x0 + 40] = 255
+        yield frame, gt
+
+
+@pytest.mark.parametrize("name", ["compensated", "grbm"])
+def test_a_textured_object_over_a_blank_background_is_found(name):
+    # Its motion is the only one measured; taken for the camera's, it would make the object
+    # background (min_extent=0: the fit is never refused).
+    def f_measure(**params):
+        eng = _engine_with(name, **params)
+        tp = fp = fn = 0
+        statuses = set()
+        for k, (frame, gt) in enumerate(_over_blank()):
+            p, g = eng.apply(frame) > 0, gt > 0
+            if k >= 3:
+                tp += np.count_nonzero(p & g)
+                fp += np.count_nonzero(p & ~g)
+                fn += np.count_nonzero(~p & g)
+                statuses.add(eng.last_status)
+        return 2 * tp / (2 * tp + fp + fn), statuses
+
+    f, statuses = f_measure()
+    assert f > 0.7, f
+    assert f"fallback: {SMALL_REGION}" in statuses, statuses
+    refused_never, _ = f_measure(min_extent=0.0)
+    assert f > refused_never + 0.2, (f, refused_never)
+
+
+def _motion_result(points, inliers, weights=None):
+    pts = np.asarray(points, np.float32)
+    n = len(pts)
+    w = np.ones(n, np.float32) if weights is None else np.asarray(weights, np.float32)
+    return MotionResult(pts, np.zeros_like(pts), w,
+                        GlobalMotion(np.eye(3), np.asarray(inliers, bool), True))
+
+
+def test_a_fit_spans_the_frame_when_its_inliers_reach_across_width_or_height():
+    shape = (101, 201)  # (H, W): spans are fractions of 100 and 200 px
+    across = _motion_result([[0, 50], [100, 50], [200, 50]], [True, True, True])
+    assert spans_frame(across, shape, 0.33)
+    tall = _motion_result([[100, 10], [100, 60]], [True, True])  # 50 % of the height
+    assert spans_frame(tall, shape, 0.33)
+    assert not spans_frame(tall, shape, 0.6)
+
+
+def test_only_weighted_inliers_count_towards_the_span():
+    shape = (101, 201)
+    points = [[10, 10], [30, 20], [190, 90]]
+    far_outlier = _motion_result(points, [True, True, False])
+    assert not spans_frame(far_outlier, shape, 0.33)
+    far_unweighted = _motion_result(points, [True, True, True], weights=[1, 1, 0])
+    assert not spans_frame(far_unweighted, shape, 0.33)
+    assert spans_frame(_motion_result(points, [True, True, True]), shape, 0.33)
+
+
+def test_a_fit_with_no_inliers_is_not_refused_for_its_span():
+    assert spans_frame(_motion_result(np.zeros((0, 2)), []), (100, 100), 0.33)
 
 
 def test_pixels_without_history_never_count_towards_a_scene_cut():

@@ -44,10 +44,10 @@ def _binarize_into(raw: np.ndarray, fgmask: Optional[np.ndarray]) -> np.ndarray:
     -------
     (H, W) uint8 with values 0 and 255 only (``fgmask`` itself when given).
     """
+    _, out = cv2.threshold(raw, _SHADOW_CUT, 255, cv2.THRESH_BINARY)
     if fgmask is None:
-        _, out = cv2.threshold(raw, _SHADOW_CUT, 255, cv2.THRESH_BINARY)
         return out
-    cv2.threshold(raw, _SHADOW_CUT, 255, cv2.THRESH_BINARY, dst=fgmask)
+    fgmask[...] = out  # (not dst=fgmask: OpenCV cannot write into a strided view)
     return fgmask
 
 
@@ -69,14 +69,19 @@ class OpenCVSubtractor(Engine):
     min_rate : float
         Rates in [0, ``min_rate``) are passed as ``min_rate``: OpenCV's KNN divides by
         ``log(1 - rate)`` and at 0 stops detecting anything instead of freezing its model.
+    first_frame_repeats : int
+        With such a rate on the very first frame, the subtractor first learns that frame this
+        many times at its automatic rate (KNN: its sample count, so the frozen model is that
+        frame rather than empty sample sets).
     """
 
     def __init__(self, make: Callable[[], Any], *, learning_rate: float = -1.0,
-                 min_rate: float = 0.0) -> None:
+                 min_rate: float = 0.0, first_frame_repeats: int = 0) -> None:
         self._make = make
         self.subtractor = make()
         self.learning_rate = float(learning_rate)
         self.min_rate = float(min_rate)
+        self.first_frame_repeats = int(first_frame_repeats)
         # (H, W) of the stream, None before the first frame (OpenCV's KNN crashes on
         # getBackgroundImage() then).
         self._shape: Optional[tuple] = None
@@ -98,6 +103,11 @@ class OpenCVSubtractor(Engine):
             self.subtractor, rate = self._make(), -1.0
         elif 0.0 <= rate < self.min_rate:
             rate = self.min_rate
+            if self._shape is None:
+                # Frozen from the first frame: that frame is the model. At min_rate KNN would
+                # keep its sample sets empty and call every pixel foreground for good.
+                for _ in range(self.first_frame_repeats):
+                    self.subtractor.apply(image, learningRate=-1.0)
         raw = self.subtractor.apply(image, learningRate=rate)
         self._shape = image.shape
         return _binarize_into(raw, fgmask)
@@ -256,7 +266,8 @@ def make_knn(
     if seed >= 0:
         cv2.setRNGSeed(int(seed))
     # 1e-6: a sample kept for ~10^5 frames, frozen in practice (see OpenCVSubtractor).
-    return OpenCVSubtractor(make, learning_rate=learning_rate, min_rate=1e-6)
+    return OpenCVSubtractor(make, learning_rate=learning_rate, min_rate=1e-6,
+                            first_frame_repeats=int(n_samples))
 
 
 class FrameDifference(Engine):

@@ -103,6 +103,9 @@ def check_fgmask(fgmask: Any, shape: tuple) -> None:
         got = (f"{fgmask.dtype} {fgmask.shape}" if isinstance(fgmask, np.ndarray)
                else type(fgmask).__name__)
         raise InputError(f"fgmask must be a {tuple(shape)} uint8 array, not {got}")
+    if not fgmask.flags.writeable:
+        raise InputError("fgmask is read-only; give a writeable array (or none: apply returns "
+                         "the mask)")
 
 
 class Engine(ABC):

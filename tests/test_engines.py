@@ -35,6 +35,29 @@ def test_a_refused_fgmask_leaves_the_engine_as_it_was(name):
 
 
 @pytest.mark.parametrize("name", ENGINES)
+def test_a_read_only_fgmask_is_refused_before_the_engine_changes(name):
+    frames = _frames()
+    reference, engine = create_engine(name), create_engine(name)
+    read_only = np.zeros((H, W), np.uint8)
+    read_only.flags.writeable = False
+    with pytest.raises(InputError, match="fgmask is read-only"):
+        engine.apply(frames[0], fgmask=read_only)
+    for frame in frames:
+        np.testing.assert_array_equal(engine.apply(frame), reference.apply(frame))
+
+
+@pytest.mark.parametrize("name", ENGINES)
+def test_a_strided_fgmask_is_written_in_place(name):
+    frames = _frames()
+    reference, engine = create_engine(name), create_engine(name)
+    strided = np.full((H, 2 * W), 77, np.uint8)[:, ::2]  # a column slice: not contiguous
+    for frame in frames:
+        out = engine.apply(frame, fgmask=strided)
+        assert out is strided
+        np.testing.assert_array_equal(strided, reference.apply(frame))
+
+
+@pytest.mark.parametrize("name", ENGINES)
 @pytest.mark.parametrize("rate", ["fast", None, True, float("nan"), 1.5])
 def test_a_bad_learning_rate_is_an_input_error(name, rate):
     with pytest.raises(InputError, match="learning_rate must be"):
@@ -123,6 +146,18 @@ def test_learning_rate_zero_freezes_the_background(name):
         engine.apply(frame)
     for frame in frames[20:]:
         mask = engine.apply(frame, learningRate=0)
+    assert (mask[square] == 255).mean() > 0.9
+    assert (mask[~square] == 0).mean() > 0.9
+
+
+@pytest.mark.parametrize("name", ENGINES)
+def test_learning_rate_zero_from_the_first_frame_keeps_that_frame(name):
+    # (OpenCV's KNN alone, at its smallest rate, would keep empty sample sets and call every
+    # pixel foreground.)
+    frames, square = _static_with_square(5, 10)
+    engine = create_engine(name, learning_rate=0.0)
+    for frame in frames:
+        mask = engine.apply(frame)
     assert (mask[square] == 255).mean() > 0.9
     assert (mask[~square] == 0).mean() > 0.9
 

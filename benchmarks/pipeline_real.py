@@ -102,7 +102,8 @@ def f_measure(tp: int, fp: int, fn: int) -> float:
 
 
 def run_generated(method: str, params: dict, seeds, *, n_frames: int = 60) -> None:
-    """F per category over ``seeds`` and the median corner error of the camera motion."""
+    """F per category over ``seeds`` and the median corner error of the camera motion each
+    frame applied (``engine.last_motion``)."""
     from bgsub.global_motion import corner_error
     from bgsub.samples import CATEGORIES, SceneSpec, render_frames
 
@@ -123,9 +124,11 @@ def run_generated(method: str, params: dict, seeds, *, n_frames: int = 60) -> No
                 tp += int(np.count_nonzero(pred & (gt == 255)))
                 fp += int(np.count_nonzero(pred & (gt == 0)))
                 fn += int(np.count_nonzero(~pred & (gt == 255)))
-                last = getattr(engine, "_last", None)
-                if last is not None and last.motion.ok:
-                    errs.append(corner_error(last.motion.matrix, motion, width=spec.width,
+                # The motion the engine applied (what `bgsub run --motion` writes): the fit, or
+                # the fallback, or none for a still camera's sub-pixel readings.
+                applied = getattr(engine, "last_motion", None)
+                if applied is not None:
+                    errs.append(corner_error(applied, motion, width=spec.width,
                                              height=spec.height))
         f = f_measure(tp, fp, fn)
         if cat != "static":

@@ -9,7 +9,10 @@ isolates the motion estimator:
    (:func:`bgsub.flowfield.estimate_flow`); ``compensated`` tracks Shi-Tomasi corners with
    pyramidal Lucas-Kanade and keeps the tracks that pass a forward-backward check;
 3. RANSAC fits the camera motion (:func:`bgsub.global_motion.fit_global_motion`); when the fit
-   is refused the previous frame's motion is reused and the frame is flagged in ``last_status``;
+   is refused the previous frame's motion is reused and the frame is flagged in ``last_status``
+   (a fit whose inliers cover only a small region is an object's: the camera is taken as still,
+   :func:`spans_frame`); a fit that moves no corner by ``still_below`` px is taken as no motion;
+   with ``learning_rate=0`` the fit is registered to the frozen model, so errors do not add up;
 4. the compensated background model is warped by it, compared with the frame, fused with the
    flow-violation map and cleaned (:mod:`bgsub.foreground`), then updated.
 
@@ -41,7 +44,8 @@ from bgsub.foreground import (
     fuse_masks,
     still_in_image_map,
 )
-from bgsub.global_motion import MODELS, GlobalMotion, apply_homography, fit_global_motion
+from bgsub.global_motion import (MODELS, GlobalMotion, apply_homography, corner_distances,
+                                 fit_global_motion, is_identity)
 
 __all__ = ["MovingCameraEngine", "GrbmEngine", "CompensatedEngine", "MotionResult",
            "GRBM_TUNED", "limited_threads", "spans_frame"]
@@ -193,6 +197,17 @@ def spans_frame(result: MotionResult, shape: tuple, min_extent: float) -> bool:
     return max(span_x, span_y) >= min_extent
 
 
+def _largest_corner_shift(matrix: np.ndarray, shape: tuple) -> float:
+    """How far (px) ``matrix`` moves the farthest-moved corner of an ``(H, W)`` frame."""
+    h, w = shape[:2]
+    return float(corner_distances(matrix, np.eye(3), width=w, height=h).max())
+
+
+# Registration of a frozen model (MovingCameraEngine._registered_to_model): the largest shift
+# (px) it may add to the frame's motion, and the smallest phase-correlation peak it trusts.
+_MAX_REGISTRATION = 3.0
+_MIN_REGISTRATION_RESPONSE = 0.05
+
 _NONE = np.zeros((0, 2), np.float32)
 #: The motion of a repeated frame: none, measured from no correspondences.
 _NO_MOTION = MotionResult(_NONE, _NONE, np.zeros(0, np.float32), GlobalMotion.identity(0))
@@ -226,6 +241,9 @@ class MovingCameraEngine(Engine):
     learning_rate : float
         The background model's rate when :meth:`apply` is given none (negative: its own;
         see :meth:`CompensatedBackground.update`).
+    still_below : float
+        A fitted motion that moves no frame corner by more than this (working px) is applied
+        as the identity (a still camera's reading noise; 0 = never).
     min_extent : float
         A fitted motion whose inliers span less than this fraction of the frame's width and of
         its height is refused as an object's (:func:`spans_frame`), and the camera is taken as
@@ -273,6 +291,7 @@ class MovingCameraEngine(Engine):
         still_cue: float = 1.0,
         learning_rate: float = -1.0,
         min_extent: float = 0.33,
+        still_below: float = 0.25,
     ) -> None:
         if 0 < work_width < MIN_WORK_WIDTH:
             # Refused here, before any output is opened, rather than at the first frame.
@@ -299,6 +318,7 @@ class MovingCameraEngine(Engine):
         self.still_cue = float(still_cue)
         self.learning_rate = float(learning_rate)
         self.min_extent = float(min_extent)
+        self.still_below = float(still_below)
         self.last_status = "ok"
         self._worker: Optional[concurrent.futures.ThreadPoolExecutor] = None
         # The previous frame as the front end keeps it (see _frame_data), working size.
@@ -314,6 +334,7 @@ class MovingCameraEngine(Engine):
         self._last_frame: Optional[np.ndarray] = None
         self._last_mask: Optional[np.ndarray] = None
         self._in_shape: Optional[tuple] = None  # the input frames' shape, (H, W) or (H, W, 3)
+        self._window: Optional[np.ndarray] = None  # Hanning window of _registered_to_model
 
     # ------------------------------------------------------------------ sizes
 
@@ -431,6 +452,12 @@ class MovingCameraEngine(Engine):
             matrix = self._prev_motion if self._prev_motion is not None else np.eye(3)
             if small:
                 matrix = np.eye(3)  # see spans_frame
+        elif self.still_below > 0 and _largest_corner_shift(matrix, gray.shape) < self.still_below:
+            # A still camera's readings scatter by hundredths of a pixel; warping the model by
+            # them resamples (blurs) it every frame and, with learning_rate=0, drifts it.
+            matrix = np.eye(3)
+        if rate == 0.0 and result.motion.ok and not is_identity(matrix):
+            matrix = self._registered_to_model(matrix, gray)
 
         # 4. The background compared in this frame's coordinates, while the other thread
         # makes the violation map.
@@ -441,7 +468,7 @@ class MovingCameraEngine(Engine):
         noise = 0.0 if small else self.violation_noise
         with self._alongside(lambda: violation.append(
                 self._violation_map(result, matrix, prev_gray, gray, noise))):
-            self.bg.warp(matrix)
+            self.bg.warp(matrix, sharp=rate == 0.0)
             score = self.bg.score(work)
         if self._is_scene_cut(score, result):
             self._restart(work, gray, cur)
@@ -467,6 +494,28 @@ class MovingCameraEngine(Engine):
             self._prev_motion = result.motion.matrix
         self.last_status = status
         return mask
+
+    def _registered_to_model(self, matrix: np.ndarray, gray: np.ndarray) -> np.ndarray:
+        """``matrix`` (3, 3) followed by the shift (at most ``_MAX_REGISTRATION`` px) that best
+        registers the background model, warped by it, to ``gray`` (phase correlation).
+
+        A frozen model (learning_rate=0) is tied to the scene by nothing but the chain of
+        frame-to-frame motions, whose errors add up: grbm's hundredths of a pixel per frame
+        became a drift of pixels within two seconds of a pan (false foreground along every
+        edge). Registering to the model itself costs two whole-frame FFTs, so it is done only
+        then.
+        """
+        h, w = gray.shape
+        mean = self.bg.mean
+        model = mean[:, :, 0] if mean.shape[2] == 1 else cv2.cvtColor(mean, cv2.COLOR_BGR2GRAY)
+        warped = cv2.warpPerspective(model, matrix, (w, h), flags=cv2.INTER_LINEAR,
+                                     borderMode=cv2.BORDER_REPLICATE)
+        if self._window is None or self._window.shape != (h, w):
+            self._window = cv2.createHanningWindow((w, h), cv2.CV_32F)
+        (dx, dy), response = cv2.phaseCorrelate(warped, gray.astype(np.float32), self._window)
+        if response < _MIN_REGISTRATION_RESPONSE or np.hypot(dx, dy) > _MAX_REGISTRATION:
+            return matrix  # no clear peak (a textureless or changed scene): keep the estimate
+        return np.array([[1.0, 0.0, dx], [0.0, 1.0, dy], [0.0, 0.0, 1.0]]) @ matrix
 
     def _violation_map(self, result: MotionResult, matrix: np.ndarray, prev_gray: np.ndarray,
                        gray: np.ndarray, noise: float) -> Optional[np.ndarray]:
@@ -551,9 +600,11 @@ class MovingCameraEngine(Engine):
     def last_motion(self) -> Optional[np.ndarray]:
         """The camera motion from the previous frame to the last one, as the engine applied it
         to its background model: ``(3, 3) float64`` in the input's pixel coordinates (as
-        :mod:`bgsub.global_motion`). The identity on the first frame; on a frame whose fit was
-        refused, the previous frame's motion (``last_status`` says so); None where the engine
-        measured none (a blank frame, a scene cut) and before the first frame."""
+        :mod:`bgsub.global_motion`). The identity on the first frame and where the fit moved
+        no corner by ``still_below`` px; on a frame whose fit was refused, the previous frame's
+        motion, or the identity when it was seen on only a small region (``last_status`` says
+        which); with ``learning_rate=0``, the fit registered to the model. None where the
+        engine measured none (a blank frame, a scene cut) and before the first frame."""
         matrix = self._last_matrix
         if matrix is None or self._in_shape is None:
             return None
@@ -907,6 +958,10 @@ _COMMON = {
                               "the frame's width or height; one seen only on a smaller region "
                               "(a textured object over a blank background) is taken as the "
                               "object's, and the camera as still (0 = off)", low=0, high=1),
+    "still_below": Param(0.25, "a fitted camera motion that moves no frame corner by more than "
+                              "this (working px) is taken as none: warping the model by a still "
+                              "camera's sub-pixel reading noise blurs it, and a frozen model "
+                              "(learning_rate=0) drifts (0 = off)", low=0),
     "still_cue": Param(1.0, "weight of the evidence that a pixel stays put in the image while "
                             "the camera moves (an object the camera follows; 0 = off)",
                        low=0, high=1),

@@ -44,6 +44,27 @@ def test_pure_pan_gives_no_foreground():
     assert max(np.count_nonzero(m) for m in masks) < 0.005 * masks[0].size
 
 
+@pytest.mark.parametrize("sharp, kept", [(False, 0.6), (True, 0.8)])
+def test_a_sharp_warp_keeps_a_frozen_models_detail(sharp, kept):
+    # Ten sub-pixel shifts there and back: what a model that does not learn (learning_rate=0)
+    # goes through in ten frames of a pan. Bilinear resampling blurs it at every step.
+    rng = np.random.default_rng(4)
+    texture = cv2.resize(rng.integers(0, 256, (30, 40)).astype(np.uint8), (160, 120),
+                         interpolation=cv2.INTER_CUBIC)
+    bg = CompensatedBackground()
+    bg.update(texture)
+    detail = cv2.Laplacian(bg.mean[:, :, 0], cv2.CV_32F)[20:-20, 20:-20].var()
+    for k in range(10):
+        shift = 0.4 if k % 2 == 0 else -0.4
+        bg.warp(np.array([[1, 0, shift], [0, 1, shift], [0, 0, 1.0]]), sharp=sharp)
+    after = cv2.Laplacian(bg.mean[:, :, 0], cv2.CV_32F)[20:-20, 20:-20].var()
+    if sharp:
+        assert after > kept * detail, after / detail
+        assert 0.0 <= bg.mean.min() and bg.mean.max() <= 255.0
+    else:
+        assert after < kept * detail, after / detail
+
+
 def test_uncovered_border_has_no_history_and_is_not_foreground():
     bg = CompensatedBackground(BackgroundParams())
     first = np.full((50, 60, 3), 100, np.uint8)

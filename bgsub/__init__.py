@@ -21,6 +21,12 @@ def __getattr__(name: str) -> Any:
         return getattr(engines, name)
     raise AttributeError(f"module 'bgsub' has no attribute {name!r}")
 
+
+def __dir__() -> list:
+    # dir() and help() list the lazy engine API too (without importing it).
+    return sorted(set(globals()) | set(_ENGINE_API))
+
+
 __all__ = [
     "__version__",
     "Engine",

@@ -686,6 +686,10 @@ class _IterableReader(_PredictionReader):
     def read(self, numbers: Sequence[int]) -> Iterator[Tuple[int, np.ndarray]]:
         wanted = set(numbers)
         for number, mask in self.pairs:
+            if int(number) < 1:  # ignored, it would only show as a frame "with no prediction"
+                raise InputError(f"a prediction for frame number {number}: CDnet frame numbers "
+                                 "start at 1 (in000001.jpg is frame 1); add 1 to 0-based frame "
+                                 "indices such as FrameSource's")
             if int(number) in wanted:
                 yield int(number), _to_gray(_as_uint8_mask(mask, number), f"frame {number}")
 
@@ -856,7 +860,8 @@ def evaluate_sequence(
     ----------
     pred : path or iterable of (frame_number, (H, W) uint8 mask), or None
         A ``binNNNNNN.png`` folder, a mask video, or masks from Python (a generator works: it is
-        consumed once, streaming; a dict ``{frame_number: mask}`` too). ``None``: no prediction
+        consumed once, streaming; a dict ``{frame_number: mask}`` too; frame numbers are CDnet's,
+        from 1, so a number below 1 is an error). ``None``: no prediction
         at all (every frame missing).
     gt_dir : path
         CDnet sequence folder (``groundtruth/``, optional ``temporalROI.txt``, ``ROI.bmp``).

@@ -81,14 +81,15 @@ class GatedRBM:
     by : (n_out,) float32
         Output biases.
     patch_size : int
-        ``p``; ``n_in == n_out == p * p``.
+        ``p`` (at least 1); ``n_in == n_out == p * p``.
     output_units : {"binary", "gaussian"}
         Binary (random dots) or unit-variance Gaussian (normalised real images).
     normalization : {"none", "contrast"}
         ``"none"``: patches are used as they are (binary dots). ``"contrast"``: each patch loses
         its mean and a pair shares one contrast scale, at least ``contrast_floor``.
     contrast_floor : float
-        Pairs whose RMS contrast (of gray values in [0, 1]) is below this are flagged flat.
+        Pairs whose RMS contrast (of gray values in [0, 1]) is below this (above 0) are flagged
+        flat.
     wyf_gen : (n_out, F) float32 or None
         Output filters used to *generate* ``y`` when they differ from ``wyf`` (a whitened model
         folded back to pixels); ``None`` means ``wyf``.
@@ -285,6 +286,10 @@ class GatedRBM:
     # ------------------------------------------------------------------ files
 
     def _shape_problem(self) -> str:
+        if self.patch_size < 1:
+            return f"patch_size must be at least 1, not {self.patch_size}"
+        if not (np.isfinite(self.contrast_floor) and self.contrast_floor > 0):
+            return f"contrast_floor must be a number above 0, not {self.contrast_floor!r}"
         n_f = self.wxf.shape[1] if self.wxf.ndim == 2 else -1
         expect = {
             "wxf": (self.patch_size**2, n_f),
@@ -356,8 +361,18 @@ class GatedRBM:
             if not isinstance(loaded, np.lib.npyio.NpzFile):  # a plain .npy array
                 raise ModelError(f"{path} is not a readable bgsub model (a single .npy array, "
                                  "not an .npz archive)")
+            data = {}
             with loaded as npz:
-                data = {name: npz[name] for name in npz.files}
+                for name in npz.files:
+                    try:
+                        data[name] = npz[name]
+                    except ValueError as err:
+                        if "pickle" not in str(err):
+                            raise
+                        raise ModelError(f"{path}: array {name!r} holds Python objects, which "
+                                         "only pickle can read, and bgsub never loads pickles "
+                                         "(they can run code); save numbers and text only"
+                                         ) from None
         except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as err:
             # numpy's own message for a non-npz file suggests loading it with allow_pickle, which
             # bgsub never does (a pickle can run code): name the problem without that advice.
@@ -366,18 +381,23 @@ class GatedRBM:
         missing = [n for n in ("format_version", "header") + _ARRAYS if n not in data]
         if missing:
             raise ModelError(f"{path} is not a bgsub model (missing {', '.join(missing)})")
-        try:
-            version = int(data["format_version"])
-        except (TypeError, ValueError):
-            raise ModelError(f"{path}: unreadable format version") from None
+        stored = data["format_version"]
+        if stored.dtype.kind not in "iu" or stored.size != 1:
+            shown = repr(stored.item()) if stored.size == 1 else f"of shape {stored.shape}"
+            raise ModelError(f"{path}: format version {shown} is not stored as a whole number "
+                             f"(bgsub models store {FORMAT_VERSION}); save the model again with "
+                             "bgsub")
+        version = int(stored.item())
         if version != FORMAT_VERSION:
             raise ModelError(
                 f"{path} has model format version {version}; this bgsub reads version {FORMAT_VERSION}"
             )
         try:
             header = json.loads(str(data["header"][()]))
+            if type(header["patch_size"]) is not int:  # not 13.7, "13" or true
+                raise ValueError(f"patch_size {header['patch_size']!r} is not a whole number")
             kwargs = dict(
-                patch_size=int(header["patch_size"]),
+                patch_size=header["patch_size"],
                 output_units=str(header["output_units"]),
                 normalization=str(header.get("normalization", "none")),
                 contrast_floor=float(header.get("contrast_floor", 0.02)),

@@ -309,6 +309,29 @@ def _check_image(image: np.ndarray, *, ndims: Tuple[int, ...], what: str) -> Non
 _SHAPES = {2: "(H, W)", 3: "(H, W, 3)"}
 
 
+def _check_size(path: Path, width: Any, height: Any, what: str) -> None:
+    """:class:`OutputError` unless ``width`` and ``height`` are whole numbers of at least 1."""
+    for value in (width, height):
+        if not (isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+                and value >= 1):
+            raise OutputError(f"{path}: cannot write {what} of {width}x{height} pixels; "
+                              "width and height must be whole numbers of at least 1")
+
+
+def _binary_mask(mask: Any) -> np.ndarray:
+    """``mask`` as ``(H, W) uint8`` 0/255 (a bool mask: True -> 255); ``ValueError`` for any
+    other dtype, shape or values (a 0/1 mask would read as all background)."""
+    if isinstance(mask, np.ndarray) and mask.dtype == bool:
+        mask = mask.view(np.uint8) * np.uint8(255)
+    _check_image(mask, ndims=(2,), what="a mask")
+    if np.count_nonzero(mask) != np.count_nonzero(mask == 255):
+        found = np.unique(mask[(mask != 0) & (mask != 255)])[:3].tolist()
+        raise ValueError(f"a mask must hold only 0 (background) and 255 (foreground), not "
+                         f"{', '.join(map(str, found))}; multiply a 0/1 mask by 255 or give a "
+                         "bool mask")
+    return mask
+
+
 class _Sink(ABC):
     """Context-manager behaviour shared by every sink: close, and report a partial output."""
 
@@ -360,6 +383,7 @@ class MaskSink(_Sink):
     """
 
     def __init__(self, path: Path, *, width: int, height: int) -> None:
+        _check_size(path, width, height, "masks")
         self.path = path
         self.width = int(width)
         self.height = int(height)
@@ -369,14 +393,20 @@ class MaskSink(_Sink):
 
         Parameters
         ----------
-        mask : (H, W) uint8 array
-            0 = background, 255 = foreground; ``H, W`` = this sink's ``height, width``.
+        mask : (H, W) uint8 or bool array
+            0 = background, 255 = foreground (bool: True = foreground); ``H, W`` = this sink's
+            ``height, width``.
         index : int, optional
             0-based index of the input frame the mask belongs to; it names the PNG
             (``bin{index + 1:06d}.png``). Videos ignore it (frames follow the order written).
             ``None`` numbers masks 1, 2, ... in the order written.
+
+        Raises
+        ------
+        ValueError
+            A mask of another dtype or size, or with values other than 0 and 255.
         """
-        _check_image(mask, ndims=(2,), what="a mask")
+        mask = _binary_mask(mask)
         if mask.shape != (self.height, self.width):
             raise ValueError(f"a mask must be {self.width}x{self.height} for {self.path}, got "
                              f"{mask.shape[1]}x{mask.shape[0]}")
@@ -492,7 +522,8 @@ def open_mask_sink(path: PathLike, *, width: int, height: int, fps: float,
     ------
     OutputError
         The output exists (without ``overwrite``), has an extension that is no mask video, its
-        folder is missing or read-only, or the video writer cannot be opened.
+        folder is missing or read-only, ``width`` or ``height`` is not a whole number of at
+        least 1, or the video writer cannot be opened.
     """
     output = check_mask_output(path, overwrite=overwrite)
     if output.suffix.lower() in MASK_VIDEO_CODECS:
@@ -523,6 +554,8 @@ class VideoSink(_Sink):
     def __init__(self, path: PathLike, *, fps: float, width: Optional[int] = None,
                  height: Optional[int] = None, overwrite: bool = False) -> None:
         self.path = check_video_output(path, overwrite=overwrite)
+        if width is not None or height is not None:
+            _check_size(self.path, width, height, "pictures")
         codec = PICTURE_VIDEO_CODECS[self.path.suffix.lower()]
         self._video = _VideoFile(self.path, codec=codec, fps=fps, is_color=True)
         self._blanks = 0  # pictures skipped before the size was known
@@ -607,16 +640,25 @@ class VisSink(_Sink):
 
     def __init__(self, path: PathLike, *, width: int, height: int, fps: float,
                  overwrite: bool = False) -> None:
+        _check_size(_output_path(path), width, height, "frames")
         self._video = VideoSink(path, fps=fps, width=2 * int(width), height=int(height),
                                 overwrite=overwrite)
         self.path = self._video.path
+        self.width, self.height = int(width), int(height)
 
     @property
     def frames_written(self) -> int:
         return self._video.frames_written
 
     def write(self, frame: np.ndarray, mask: np.ndarray) -> None:
-        """Write ``frame`` (H, W, 3) uint8 with ``mask`` (H, W) uint8 0/255."""
+        """Write ``frame`` ((H, W, 3) BGR or (H, W) gray uint8) with its ``mask`` ((H, W)
+        uint8 0/255, or bool), both of this sink's ``height, width``; ``ValueError`` otherwise."""
+        _check_image(frame, ndims=(2, 3), what="a frame")
+        mask = _binary_mask(mask)
+        if frame.shape[:2] != (self.height, self.width) or mask.shape != frame.shape[:2]:
+            raise ValueError(f"a frame and its mask must both be {self.width}x{self.height} for "
+                             f"{self.path}, got {frame.shape[1]}x{frame.shape[0]} and "
+                             f"{mask.shape[1]}x{mask.shape[0]}")
         self._video.write(render_overlay(frame, mask))
 
     def close(self) -> None:
@@ -802,6 +844,12 @@ def process(frames: Iterable[Tuple[int, np.ndarray]], engine, masks: MaskSink, *
     started = time.perf_counter()
     for index, frame in frames:
         mask = engine.apply(frame)
+        try:
+            # (A plugin engine's 0/1 mask would be written as all background.)
+            mask = _binary_mask(mask)
+        except ValueError as err:
+            raise ProcessingError(f"{type(engine).__name__} returned an unusable mask for frame "
+                                  f"{index + 1}: {err}") from None
         # Drawn before any write, so Ctrl-C while drawing leaves this frame out of every output;
         # Ctrl-C while writing waits until it is in all of them: outputs that differ in length
         # would no longer line up frame for frame.

@@ -432,9 +432,9 @@ def open_source(path: PathLike, *, start: int = 0, stop: Optional[int] = None, s
     width : int, optional
         Resize every frame to this width, keeping the aspect ratio. Exclusive with ``scale``.
     fps : float, optional
-        The input's frame rate, in place of what it states (image folders state none: videos
-        written from them play at :data:`DEFAULT_FPS` otherwise). ``info.fps`` is this divided
-        by ``step``.
+        The input's frame rate (any real number from 0.01 to 1000: int, float, a numpy scalar),
+        in place of what it states (image folders state none: videos written from them play at
+        :data:`DEFAULT_FPS` otherwise). ``info.fps`` is this divided by ``step``.
 
     Returns
     -------
@@ -449,8 +449,8 @@ def open_source(path: PathLike, *, start: int = 0, stop: Optional[int] = None, s
         reported when iteration reaches them.
     """
     _check_range(start, stop, step)
-    if fps is not None and not (isinstance(fps, (int, float)) and math.isfinite(fps)
-                                and 0.01 <= fps <= 1000):
+    if fps is not None and not (isinstance(fps, numbers.Real) and not isinstance(fps, bool)
+                                and math.isfinite(fps) and 0.01 <= fps <= 1000):
         # (OpenCV's video writers refuse rates near 0: 0.001 fails, 0.002 works.)
         raise InputError(f"the frame rate must be a number of frames per second from 0.01 to "
                          f"1000, not {fps!r}")

@@ -333,6 +333,17 @@ def test_python_masks_input(hand_case):
     assert evaluate_sequence(masks, gt).counts == HAND_COUNTS
 
 
+@pytest.mark.parametrize("first", [0, -1])
+def test_a_frame_number_below_1_is_refused_as_a_0_based_index(hand_case, first):
+    # 0-based indices (FrameSource's) would pair each mask with the frame before its own, the
+    # mask numbered 0 silently left out.
+    _, gt = hand_case
+    masks = ((first + k, m) for k, m in enumerate([PRED2, PRED2, PRED3]))
+    with pytest.raises(InputError, match=rf"frame number {first}: CDnet frame numbers start "
+                                         r"at 1 \(in000001.jpg is frame 1\)"):
+        evaluate_sequence(masks, gt, allow_missing=True)
+
+
 def test_zero_one_masks_are_refused_not_scored_as_background(hand_case, tmp_path):
     _, gt = hand_case
     slip = {2: (PRED2 > 127).astype(np.uint8), 3: (PRED3 > 127).astype(np.uint8)}

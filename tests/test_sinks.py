@@ -248,7 +248,43 @@ def test_mask_shape_and_dtype_are_checked(tmp_path, bad):
             sink.write(bad)
 
 
+@pytest.mark.parametrize("name", ["out/masks", "m.mkv"])
+@pytest.mark.parametrize("width, height", [(-2, H), (W, 0)])
+def test_a_mask_size_below_one_pixel_is_refused_before_writing(tmp_path, name, width, height):
+    with pytest.raises(OutputError, match=f"masks of {width}x{height} pixels"):
+        open_mask_sink(tmp_path / name, width=width, height=height, fps=20)
+    assert not list(tmp_path.iterdir())
+
+
+def test_a_bool_mask_is_written_as_0_and_255(tmp_path):
+    mask = _masks(1)[0]
+    with open_mask_sink(tmp_path / "out", width=W, height=H, fps=20) as sink:
+        sink.write(mask > 0)
+    got = cv2.imread(str(tmp_path / "out" / "bin000001.png"), cv2.IMREAD_UNCHANGED)
+    np.testing.assert_array_equal(got, mask)
+
+
+@pytest.mark.parametrize("value", [1, 127])
+def test_a_mask_with_values_other_than_0_and_255_is_refused(tmp_path, value):
+    # A 0/1 mask would be scored as all background by `bgsub eval`.
+    mask = np.where(_masks(1)[0] > 0, value, 0).astype(np.uint8)
+    with open_mask_sink(tmp_path / "out", width=W, height=H, fps=20) as sink:
+        with pytest.raises(ValueError, match=f"only 0 .* and 255 .*, not {value}"):
+            sink.write(mask)
+    assert sink.frames_written == 0
+
+
 # ------------------------------------------------------------------------------- pictures
+
+
+@pytest.mark.parametrize("make", [
+    lambda path: VideoSink(path, fps=10, width=0, height=H),
+    lambda path: VisSink(path, width=-4, height=H, fps=10),
+])
+def test_picture_sinks_refuse_a_size_below_one_pixel(tmp_path, make):
+    with pytest.raises(OutputError, match="must be whole numbers of at least 1"):
+        make(tmp_path / "p.mkv")
+    assert not list(tmp_path.iterdir())
 
 
 @pytest.mark.parametrize("ext", [".mp4", ".avi", ".mkv"])
@@ -319,6 +355,26 @@ def test_vis_sink_writes_side_by_side_video(tmp_path):
     assert len(frames) == 3 and frames[0].shape == (H, 2 * W, 3)
 
 
+def test_vis_sink_takes_a_bool_mask_as_0_and_255(tmp_path):
+    mask = _masks(1)[0]
+    frame = np.full((H, W, 3), 100, np.uint8)
+    with VisSink(tmp_path / "vis.mkv", width=W, height=H, fps=10) as vis:
+        vis.write(frame, mask > 0)
+    got = _read_video(tmp_path / "vis.mkv")[0]
+    np.testing.assert_array_equal(got, render_overlay(frame, mask))
+
+
+@pytest.mark.parametrize("frame, mask, words", [
+    (np.zeros((H, W, 3), np.uint8), np.zeros((H, W), np.float32), "a mask must be a uint8"),
+    (np.zeros((H, W, 3), np.float32), np.zeros((H, W), np.uint8), "a frame must be a uint8"),
+    (np.zeros((H, W, 3), np.uint8), np.zeros((H - 2, W), np.uint8), "must both be 48x32"),
+])
+def test_vis_sink_names_what_is_wrong_with_a_frame_or_mask(tmp_path, frame, mask, words):
+    with VisSink(tmp_path / "vis.mkv", width=W, height=H, fps=10) as vis:
+        with pytest.raises(ValueError, match=words):
+            vis.write(frame, mask)
+
+
 # ------------------------------------------------------------------------------- process()
 
 
@@ -347,6 +403,21 @@ def test_process_writes_every_mask_and_counts_statuses(tmp_path):
     got = cv2.imread(str(tmp_path / "out" / "bin000013.png"), cv2.IMREAD_UNCHANGED)
     gray = cv2.cvtColor(frames[2][1], cv2.COLOR_BGR2GRAY)
     np.testing.assert_array_equal(got, np.where(gray > 128, 255, 0))
+
+
+class _ZeroOne(_Threshold):
+    """A plugin engine that returns 0/1 masks."""
+
+    def apply(self, image, fgmask=None, learning_rate=-1.0):
+        return super().apply(image) // 255
+
+
+def test_process_refuses_an_engines_0_1_mask_as_a_processing_error(tmp_path):
+    frames = [(0, np.full((H, W, 3), 200, np.uint8))]
+    with open_mask_sink(tmp_path / "out", width=W, height=H, fps=10) as sink:
+        with pytest.raises(ProcessingError, match="_ZeroOne returned an unusable mask for "
+                                                  "frame 1: .*only 0.*and 255"):
+            process(frames, _ZeroOne(), sink)
 
 
 def test_process_refuses_flow_vis_without_debug_image(tmp_path):

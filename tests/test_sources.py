@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from fractions import Fraction
 from pathlib import Path
 from typing import List
 
@@ -378,7 +379,15 @@ def test_a_given_frame_rate_replaces_the_default_of_a_folder(tmp_path, step, wan
         assert source.info.fps == pytest.approx(want) and not source.info.fps_is_default
 
 
-@pytest.mark.parametrize("fps", [0, 0.001, -5, float("nan"), float("inf"), 5000])
+@pytest.mark.parametrize("fps", [np.float32(30), np.int64(30), Fraction(30)])
+def test_a_frame_rate_of_any_real_number_type_is_accepted(tmp_path, fps):
+    video = _write_video(tmp_path / "clip.mkv", _frames(3))
+    with open_source(video, fps=fps) as source:
+        assert source.info.fps == 30.0 and type(source.info.fps) is float
+
+
+@pytest.mark.parametrize("fps", [0, 0.001, -5, float("nan"), float("inf"), 5000,
+                                 np.float32("nan"), True, "30"])
 def test_an_impossible_frame_rate_is_refused(tmp_path, fps):
     video = _write_video(tmp_path / "clip.mkv", _frames(3))
     with pytest.raises(InputError, match="frame rate must be a number of frames per second"):

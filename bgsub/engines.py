@@ -21,6 +21,7 @@ from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from typing import Any, Callable, Dict, Iterable, List, Optional
 
+import cv2
 import numpy as np
 
 from bgsub.errors import InputError, describe_shape
@@ -57,7 +58,7 @@ def check_frame(image: Any, *, shape: Optional[tuple] = None) -> np.ndarray:
 
     Parameters
     ----------
-    image : (H, W), (H, W, 1) or (H, W, 3) uint8 array
+    image : (H, W), (H, W, 1), (H, W, 3) or (H, W, 4) uint8 array
     shape : (H, W) or (H, W, 3), optional
         The shape of the stream's earlier frames as this function returned them: a frame of
         another size, or gray after colour (or colour after gray), is refused (an engine's
@@ -65,18 +66,26 @@ def check_frame(image: Any, *, shape: Optional[tuple] = None) -> np.ndarray:
 
     Returns
     -------
-    ``image``, or its ``(H, W)`` view when it has one channel.
+    ``image``, its ``(H, W)`` view when it has one channel, or its BGR copy when it has four
+    (an alpha channel, as ``cv2.IMREAD_UNCHANGED`` reads a PNG).
     """
-    if not isinstance(image, np.ndarray) or image.dtype != np.uint8:
-        kind = getattr(image, "dtype", type(image).__name__)
-        raise InputError(f"engine input must be a uint8 numpy image, not {kind}")
-    if not (image.ndim == 2 or (image.ndim == 3 and image.shape[2] in (1, 3))):
-        raise InputError(
-            f"engine input must be (H, W) gray or (H, W, 3) BGR, not shape {tuple(image.shape)}")
+    if not isinstance(image, np.ndarray) or image.ndim == 0:
+        what = ("a single number" if isinstance(image, (np.generic, np.ndarray))
+                else type(image).__name__)
+        raise InputError(f"engine input must be a uint8 numpy image, not {what}")
+    if image.dtype != np.uint8:
+        hint = (": scale it to 8 bits first, e.g. (frame >> 8).astype(np.uint8)"
+                if image.dtype == np.uint16 else "")
+        raise InputError(f"engine input must be a uint8 image, not {image.dtype}{hint}")
+    if not (image.ndim == 2 or (image.ndim == 3 and image.shape[2] in (1, 3, 4))):
+        raise InputError(f"engine input must be (H, W) gray, (H, W, 3) BGR or (H, W, 4) BGRA, "
+                         f"not shape {tuple(image.shape)}")
     if image.shape[0] == 0 or image.shape[1] == 0:
         raise InputError(f"engine input is empty (shape {image.shape})")
     if image.ndim == 3 and image.shape[2] == 1:
         image = image[:, :, 0]
+    elif image.ndim == 3 and image.shape[2] == 4:
+        image = cv2.cvtColor(image, cv2.COLOR_BGRA2BGR)
     if shape is not None and image.shape != tuple(shape):
         raise InputError(f"frames changed from {describe_shape(tuple(shape))} to "
                          f"{describe_shape(image.shape)} (a new stream needs a new engine)")
@@ -126,17 +135,20 @@ class Engine(ABC):
 
         Parameters
         ----------
-        image : (H, W, 3) BGR or (H, W) gray uint8 array
+        image : (H, W, 3) BGR, (H, W, 4) BGRA or (H, W) gray uint8 array
             The next frame of the stream, of the same size as the earlier ones (a frame of
             another size raises :class:`~bgsub.errors.InputError`: a new stream needs a new
-            engine).
+            engine). BGRA's alpha is dropped. Other depths (16-bit, float) are refused: scale
+            them to 8 bits first (for 16-bit, ``(frame >> 8).astype(np.uint8)``).
         fgmask : (H, W) uint8 array, optional
             Written in place when given (as OpenCV does).
         learning_rate : float
             How fast the background model adapts, as in OpenCV: negative = the engine's own
             rate; 0 = do not update the model (it stays as it is while, say, a robot arm is in
             view); 1 = restart it from this frame; in between, the rate for every pixel. Also
-            accepted as ``learningRate=``.
+            accepted as ``learningRate=``. The mask of a call at 1: ``mog2`` and ``knn`` (as
+            OpenCV's) call the whole frame foreground, and ``knn`` the next three as well; the
+            other engines compare the frame with the model they are about to discard.
 
         Returns
         -------

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import os
 import threading
+import warnings
 from dataclasses import dataclass
 from typing import Any, List, Optional, Tuple
 
@@ -37,9 +38,11 @@ from bgsub.tiling import TEXTURE_SCALE, patch_grid, to_gray
 __all__ = [
     "FlowEstimate",
     "FramePyramid",
+    "MotionRangeWarning",
     "estimate_flow",
     "prepare_first_frame",
     "auto_levels",
+    "motion_reach",
     "model_range",
     "patch_motion",
     "dense_from_patches",
@@ -168,13 +171,28 @@ def _scaled(matrix: np.ndarray, factor: float) -> np.ndarray:
 
 def auto_levels(shape: tuple, *, max_motion: float, model_disp: int, patch_size: int) -> int:
     """Pyramid levels so that ``max_motion`` px at full size is within ``model_disp`` at the
-    coarsest level, while that level still holds a few patches across."""
+    coarsest level, while that level still holds a few patches across (its short side at least
+    ``4 * patch_size``): on small frames fewer levels than ``max_motion`` needs (see
+    :class:`MotionRangeWarning`)."""
     h, w = shape[:2]
     levels = 1
     # One pixel of margin: readings at the edge of the range are ambiguous (clipped or not).
     while max_motion / 2 ** (levels - 1) > model_disp - 1 and min(h, w) / 2**levels >= 4 * patch_size:
         levels += 1
     return levels
+
+
+class MotionRangeWarning(UserWarning):
+    """:func:`estimate_flow`'s automatic pyramid cannot reach the ``max_motion`` asked for: the
+    frame is too small for the levels it needs, and larger motions are misread."""
+
+
+def motion_reach(levels: int, *, model_disp: int, search: int = 0) -> int:
+    """Largest motion (px per axis, full resolution) ``levels`` pyramid levels read from their
+    start: the model's range less :func:`auto_levels`' one-pixel margin at the coarsest level,
+    widened by the ``search`` grid there (steps of that much, see :func:`_choose_start`)."""
+    step = max(1, model_disp - 1) * 2 ** (levels - 1)
+    return step * (1 + max(0, int(search)) if levels > 1 else 1)
 
 
 class FramePyramid:
@@ -388,7 +406,12 @@ def estimate_flow(
     levels : int, optional
         Pyramid levels (1 = full resolution only). Default: enough for ``max_motion``.
     max_motion : float
-        Largest frame-to-frame motion (px, full resolution) to plan the pyramid for.
+        Largest frame-to-frame motion (px, full resolution) to plan the pyramid for. The levels
+        are capped by the frame size (the coarsest at least 4 patches across, see
+        :func:`auto_levels`): a 320x240 frame allows 3 levels, which read up to about 12 px per
+        axis with a model of range 4 (24 px with ``search=1``). Larger motions are misread
+        (patches still valid, ``coarse_status`` still ``"ok"``), so a ``max_motion`` beyond that
+        reach gives a :class:`MotionRangeWarning` (with automatic ``levels`` only).
     max_disp : int, optional
         The model's displacement range; default :func:`model_range`.
     coarse_stride : int, optional
@@ -464,6 +487,18 @@ def estimate_flow(
     Returns
     -------
     FlowEstimate
+
+    Raises
+    ------
+    InputError
+        Frames of other dtypes, float frames outside [0, 1] or holding NaN or infinite values,
+        frames of different sizes, or invalid options.
+
+    Warns
+    -----
+    MotionRangeWarning
+        With automatic ``levels``, when ``max_motion`` is beyond what the pyramid the frame size
+        allows can read (the message gives that largest motion).
     """
     model, prior = _checked_options(frame1, frame2, model=model, prior=prior, stride=stride,
                                     levels=levels, max_motion=max_motion)
@@ -482,6 +517,15 @@ def estimate_flow(
         texture_scale=texture_scale, max_patches=max_patches, iterations=iterations,
         finest=finest, refine_stride=refine_stride, start_tolerance=start_tolerance)
     pyr2 = fp2.levels(plan.levels, p)
+    reach = motion_reach(plan.levels, model_disp=rng, search=search)
+    if levels is None and max_motion > reach:
+        n, step = plan.levels, motion_reach(plan.levels, model_disp=rng, search=0)
+        hint = (f"pass search={search + 1} or more (each adds {step} px) or a prior near the "
+                "motion" if n > 1 else "give larger frames")
+        warnings.warn(f"max_motion={max_motion:g} px is out of reach on {g1.shape[1]}x"
+                      f"{g1.shape[0]} frames: the {n} pyramid level{'s' * (n > 1)} their size "
+                      f"allows read motions up to about {reach} px, larger ones are misread; "
+                      f"{hint}", MotionRangeWarning, stacklevel=2)
     levels = plan.levels
     cstride, fine, fine_stride, pre_stride = (plan.coarse_stride, plan.fine, plan.fine_stride,
                                               plan.pre_stride)
@@ -556,7 +600,11 @@ def _checked_options(frame1: Any, frame2: Any, *, model: Any, prior: Optional[np
             continue
         frame = np.asarray(frame)
         if frame.dtype.kind == "f":
-            if frame.size and not 0.0 <= float(np.nanmin(frame)) <= float(np.nanmax(frame)) <= 1.0:
+            if not np.isfinite(frame).all():
+                # A NaN spreads through every patch and pyramid level it touches.
+                raise InputError("frame contains NaN or infinite values; give gray values in "
+                                 "[0, 1] everywhere (e.g. frame[~np.isfinite(frame)] = 0)")
+            if frame.size and not 0.0 <= float(frame.min()) <= float(frame.max()) <= 1.0:
                 raise InputError("float frames must be gray values in [0, 1]; give uint8 frames "
                                  "as they are, or divide by 255")
         elif frame.dtype != np.uint8:

@@ -25,6 +25,7 @@ from __future__ import annotations
 import concurrent.futures
 import contextlib
 import dataclasses
+import warnings
 from dataclasses import dataclass
 from abc import abstractmethod
 from typing import Any, Callable, Iterator, Optional
@@ -35,7 +36,8 @@ import numpy as np
 from bgsub.engines import (LEARNING_RATE, Engine, Param, check_fgmask, check_frame,
                            check_learning_rate, opencv_keywords, register_engine)
 from bgsub.errors import InputError
-from bgsub.flowfield import FramePyramid, dense_from_patches, estimate_flow, prepare_first_frame
+from bgsub.flowfield import (FramePyramid, MotionRangeWarning, dense_from_patches, estimate_flow,
+                             prepare_first_frame)
 from bgsub.flowio import draw_flow_arrows, flow_to_color
 from bgsub.foreground import (
     BackgroundParams,
@@ -846,11 +848,15 @@ class GrbmEngine(MovingCameraEngine):
             # cover that; a camera that changes course fails the support test and is retried
             # with the full pyramid.
             levels = self.prior_levels if self.prior_levels > 0 else None
-        flow = estimate_flow(prev, cur, prior=prior, search=self.search,
-                             coarse_iterations=self.coarse_iterations,
-                             search_below=self.search_below, start_model=self.start_model,
-                             converged=self.converged,
-                             **self._flow_settings(levels, finest, stride))
+        with warnings.catch_warnings():
+            # max_motion only plans the pyramid here: beyond its reach the engine reads from
+            # the previous frame's motion, and a poorly supported start retries coarser.
+            warnings.simplefilter("ignore", MotionRangeWarning)
+            flow = estimate_flow(prev, cur, prior=prior, search=self.search,
+                                 coarse_iterations=self.coarse_iterations,
+                                 search_below=self.search_below, start_model=self.start_model,
+                                 converged=self.converged,
+                                 **self._flow_settings(levels, finest, stride))
         motion = self._fit(flow.centres, flow.disp, flow.weights, cur.shape)
         used = max(int(np.count_nonzero(flow.weights > 0)), 1)
         return flow, motion, (motion.n_inliers / used if motion.ok else 0.0)

@@ -176,7 +176,7 @@ def test_bad_images_refused(name):
     with pytest.raises(InputError):
         engine.apply(np.zeros((H, W), np.float32))
     with pytest.raises(InputError):
-        engine.apply(np.zeros((H, W, 4), np.uint8))
+        engine.apply(np.zeros((H, W, 2), np.uint8))
 
 
 @pytest.mark.parametrize("name,params", [

@@ -236,7 +236,7 @@ def test_npy_file_as_model(capsys, pair, tmp_path, bgsub_error):
 def test_a_random_dot_model_on_a_photograph_is_warned_about(pair, tmp_path, capsys):
     out = tmp_path / "f.flo"
     assert main(["flow", str(pair[0]), str(pair[1]), "-o", str(out), "-q",
-                 "--model", "dots-translation"]) == 0
+                 "--model", "dots-translation", "--max-motion", "8"]) == 0
     assert capsys.readouterr().err == (
         f"bgsub: warning: {pair[0]}: a binary (random-dot) model expects dark images with "
         "sparse bright dots; for photographs and natural video use a Gaussian model such as "
@@ -255,7 +255,42 @@ def test_a_truncated_video_gives_its_flow_with_a_warning(tmp_path, capsys):
     writer.release()
     data = whole.read_bytes()
     cut.write_bytes(data[: len(data) // 2])
-    assert main(["flow", str(cut), "-o", str(tmp_path / "f.avi"), "-q"]) == 0
+    assert main(["flow", str(cut), "-o", str(tmp_path / "f.avi"), "-q",
+                 "--max-motion", "3"]) == 0  # (all that 40x40 frames allow)
     err = capsys.readouterr().err
     assert err.startswith(f"bgsub: warning: {cut} ended after ")
     assert err.endswith(" of the 12 frames its header declares (truncated or damaged?)\n")
+
+
+def _shifted_pair(tmp_path, shift, size=(240, 320)):
+    h, w = size
+    dx, dy = shift
+    big = _texture(h + 60, w + 60, seed=3)
+    f1 = big[30:30 + h, 30:30 + w]
+    f2 = big[30 - dy:30 - dy + h, 30 - dx:30 - dx + w]
+    p1, p2 = tmp_path / "s1.png", tmp_path / "s2.png"
+    cv2.imwrite(str(p1), f1)
+    cv2.imwrite(str(p2), f2)
+    return p1, p2
+
+
+def test_max_motion_is_read_on_frames_too_small_for_its_pyramid(tmp_path, capsys):
+    # 320x240 allows 3 pyramid levels, which read about 12 px alone: --max-motion widens the
+    # coarsest level's search instead (before: 20 px read as about (-3, -3)).
+    p1, p2 = _shifted_pair(tmp_path, (20, 0))
+    out = tmp_path / "f.flo"
+    assert main(["flow", str(p1), str(p2), "-o", str(out), "--max-motion", "24", "-q"]) == 0
+    flow = read_flo(out)
+    known = np.isfinite(flow).all(axis=2)
+    assert np.median(flow[known, 0]) == pytest.approx(20, abs=1.0)
+    assert np.median(flow[known, 1]) == pytest.approx(0, abs=1.0)
+    assert "warning" not in capsys.readouterr().err
+
+
+def test_a_max_motion_no_search_reaches_is_warned_about_once(tmp_path, capsys):
+    p1, p2 = _shifted_pair(tmp_path, (2, 0), size=(120, 160))
+    out = tmp_path / "f.flo"
+    assert main(["flow", str(p1), str(p2), "-o", str(out), "--max-motion", "400", "-q"]) == 0
+    err = capsys.readouterr().err
+    assert err.count("bgsub: warning: --max-motion 400 is beyond what 160x120 frames allow") == 1
+    assert "Warning" not in err  # no Python warning lines

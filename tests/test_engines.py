@@ -186,3 +186,27 @@ def test_learning_rate_one_restarts_from_the_frame(name):
     assert not mask.any()
     # The 20 frames without the square are forgotten: the scene they showed differs now.
     assert (engine.apply(frames[0])[square] == 255).mean() > 0.9
+
+
+@pytest.mark.parametrize("name", ENGINES)
+def test_a_bgra_frame_is_taken_as_its_bgr(name):
+    # (cv2.IMREAD_UNCHANGED reads a PNG with its alpha channel.)
+    frames = _frames()
+    reference, engine = create_engine(name), create_engine(name)
+    for frame in frames:
+        alpha = np.full(frame.shape[:2] + (1,), 255, np.uint8)
+        np.testing.assert_array_equal(engine.apply(np.concatenate([frame, alpha], axis=2)),
+                                      reference.apply(frame))
+
+
+@pytest.mark.parametrize("image, words", [
+    (np.zeros((H, W), np.uint16), r"not uint16: scale it to 8 bits first"),
+    (np.zeros((H, W, 3), np.float32), r"must be a uint8 image, not float32"),
+    (np.uint8(3), r"must be a uint8 numpy image, not a single number"),
+    ([[0, 1], [2, 3]], r"must be a uint8 numpy image, not list"),
+    (np.zeros((H, W, 2), np.uint8), r"\(H, W, 4\) BGRA, not shape \(48, 64, 2\)"),
+])
+def test_frames_of_other_kinds_are_refused_with_what_to_do(image, words):
+    for name in ENGINES:
+        with pytest.raises(InputError, match=words):
+            create_engine(name).apply(image)

@@ -7,6 +7,7 @@ shipped translation model.
 
 import dataclasses
 import re
+import warnings
 
 import cv2
 import numpy as np
@@ -463,6 +464,40 @@ def test_bad_estimate_flow_options_are_input_errors(change, words):
     options.update({k: v for k, v in change.items() if k != "first"})
     with pytest.raises(InputError, match=re.escape(words)):
         estimate_flow(change.get("first", base), base, **options)
+
+
+@pytest.mark.parametrize("fill, where", [(np.nan, np.s_[10:20, 10:20]), (np.nan, np.s_[:, :]),
+                                         (np.inf, np.s_[5, 7])])
+def test_a_float_frame_with_nan_or_inf_is_refused_before_any_warning(fill, where):
+    base = _texture(60, 80, seed=3)[:60, :80].astype(np.float32) / 255
+    bad = base.copy()
+    bad[where] = fill
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # numpy's "All-NaN slice" would come first otherwise
+        for pair in ((bad, base), (base, bad)):
+            with pytest.raises(InputError, match="frame contains NaN or infinite values"):
+                estimate_flow(*pair, model=OracleMatcher(), levels=1)
+
+
+def test_a_max_motion_beyond_the_pyramid_the_frame_allows_warns_with_its_reach():
+    # 160x120 allows 2 levels (the coarsest 4 patches across), which read (3 - 1) * 2 = 4 px
+    # with the oracle's range of 3; 20 px would need 4 levels.
+    from bgsub.flowfield import MotionRangeWarning
+
+    base = _texture(120, 160, seed=3)[:120, :160]
+    with pytest.warns(MotionRangeWarning, match=r"max_motion=20 px .* 160x120 frames: the 2 "
+                                                r"pyramid levels .* up to about 4 px"):
+        flow = estimate_flow(base, base, model=OracleMatcher(), max_motion=20)
+    assert flow.levels == 2
+
+
+@pytest.mark.parametrize("options", [dict(max_motion=4), dict(max_motion=20, search=4),
+                                     dict(max_motion=20, levels=2)])
+def test_a_max_motion_within_reach_or_fixed_levels_do_not_warn(options):
+    base = _texture(120, 160, seed=3)[:120, :160]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        estimate_flow(base, base, model=OracleMatcher(), **options)
 
 
 def test_a_model_name_is_loaded():

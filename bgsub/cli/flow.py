@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import warnings
 from pathlib import Path
 from typing import Any, List, Optional, Tuple
 
@@ -69,7 +70,9 @@ def register(subparsers: Any) -> None:
                              "(default: natural)")
     est = parser.add_argument_group("estimation")
     est.add_argument("--max-motion", type=float, default=20.0, metavar="PX",
-                     help="largest motion to expect, above 0; plans the pyramid (default 20)")
+                     help="largest motion to expect, above 0; plans the pyramid and, on frames "
+                          "too small for the levels it needs, widens the coarsest search "
+                          "(slower) (default 20)")
     est.add_argument("--levels", type=int, default=None, metavar="N",
                      help="pyramid levels, at least 1 (default: enough for --max-motion; "
                           "1 = no pyramid)")
@@ -156,12 +159,42 @@ def _input_paths(args: argparse.Namespace) -> List[str]:
     return [args.input, args.frame2 or ""] + model_files(args.model)
 
 
+# The widest grid of coarsest-level starts --max-motion may ask for ((2 s + 1)^2 readouts there).
+_MAX_SEARCH = 8
+
+
+def _search_for(shape: Tuple[int, int], model: Any, args: argparse.Namespace) -> int:
+    """The grid of coarsest-level starts that lets the pyramid a frame of ``shape`` (H, W)
+    allows read --max-motion: small frames allow fewer levels than it needs (0 when the levels
+    reach it alone, or with --levels)."""
+    from bgsub.flowfield import auto_levels, model_range, motion_reach
+
+    if args.levels is not None:
+        return 0
+    rng = model_range(model)
+    levels = auto_levels(shape, max_motion=args.max_motion, model_disp=rng,
+                         patch_size=int(model.patch_size))
+    step = motion_reach(levels, model_disp=rng)
+    if step >= args.max_motion:
+        return 0
+    search = 0 if levels <= 1 else min(_MAX_SEARCH, math.ceil(args.max_motion / step) - 1)
+    reach = motion_reach(levels, model_disp=rng, search=search)
+    if reach < args.max_motion and not getattr(args, "reach_warned", False):
+        warn(f"--max-motion {args.max_motion:g} is beyond what {shape[1]}x{shape[0]} frames "
+             f"allow: motions above about {reach} px are misread")
+        args.reach_warned = True  # once per run
+    return search
+
+
 def _estimate(frame1: np.ndarray, frame2: np.ndarray, model: Any, args: argparse.Namespace,
               prior: Optional[np.ndarray] = None):
-    from bgsub.flowfield import estimate_flow
+    from bgsub.flowfield import MotionRangeWarning, estimate_flow
 
-    return estimate_flow(frame1, frame2, model=model, stride=args.stride, levels=args.levels,
-                         max_motion=args.max_motion, prior=prior, dense=True)
+    search = _search_for(frame1.shape[:2], model, args)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", MotionRangeWarning)  # _search_for said it in CLI words
+        return estimate_flow(frame1, frame2, model=model, stride=args.stride, levels=args.levels,
+                             max_motion=args.max_motion, prior=prior, search=search, dense=True)
 
 
 def _check_pair_outputs(args: argparse.Namespace) -> None:

@@ -305,6 +305,23 @@ def test_quiet_prints_nothing(tmp_path, clip, capsys):
     assert code == 0 and err == ""
 
 
+@pytest.mark.parametrize("argv, words", [
+    (["run", "x.mp4"], "the following arguments are required: -o/--output (see `bgsub run "
+                       "--help`)"),
+    (["run", "x.mp4", "-o", "y.mkv", "--fps", "abc"], "argument --fps: invalid float value: "
+                                                      "'abc' (see `bgsub run --help`)"),
+    (["run", "x.mp4", "-o", "y.mkv", "--bogus"], "unrecognized arguments: --bogus (see `bgsub "
+                                                 "run --help`)"),
+    (["nosuch"], "argument COMMAND: invalid choice: 'nosuch'"),
+])
+def test_a_usage_error_is_one_line_pointing_at_the_help(argv, words, capsys):
+    with pytest.raises(SystemExit) as stop:
+        main(argv)
+    err = capsys.readouterr().err
+    assert stop.value.code == 2
+    assert err.startswith(f"bgsub: error: {words}") and err.count("\n") == 1, err
+
+
 def test_help_teaches_with_examples(capsys):
     with pytest.raises(SystemExit):
         main(["run", "--help"])

@@ -4,6 +4,8 @@ Each sub-command lives in its own module of this package and exposes
 ``register(subparsers) -> None``, which adds its parser and sets ``handler=fn(args) -> int``.
 This module only dispatches and turns errors into one line on stderr:
 
+* a usage error (a missing argument, an unknown option) -> argparse's message, exit status 2;
+
 * :class:`bgsub.errors.BgsubError` -> its message, exit status ``err.exit_code`` (2 bad input, 1
   failure while processing);
 * Ctrl-C -> exit status 130 (sinks have already closed their partial output and said so), also
@@ -22,7 +24,7 @@ import importlib
 import os
 import signal
 import sys
-from typing import Iterator, List, Optional
+from typing import Iterator, List, NoReturn, Optional
 
 from bgsub.errors import BgsubError
 
@@ -51,8 +53,16 @@ Run `bgsub COMMAND --help` for each command's options.
 """
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse, but a usage error is one line like every other error (argparse's own prints
+    the usage block first, which `--help` shows anyway). Sub-command parsers inherit it."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"bgsub: error: {message} (see `{self.prog} --help`)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="bgsub",
         description=(
             "Find moving objects in video from a moving camera: a gated RBM learns how patches "
@@ -67,6 +77,15 @@ def build_parser() -> argparse.ArgumentParser:
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in _COMMANDS:
         importlib.import_module(f"bgsub.cli.{name}").register(subparsers)
+    return parser
+
+
+def _command_parser(parser: argparse.ArgumentParser,
+                    args: argparse.Namespace) -> argparse.ArgumentParser:
+    """The sub-command's parser of ``args`` (``parser`` itself when there is none)."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            return action.choices.get(getattr(args, "command", None), parser)
     return parser
 
 
@@ -113,7 +132,9 @@ def main(argv: Optional[List[str]] = None) -> int:
 
 def _main(argv: Optional[List[str]]) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, extra = parser.parse_known_args(argv)
+    if extra:  # named by the command's parser, whose --help lists what it takes
+        _command_parser(parser, args).error(f"unrecognized arguments: {' '.join(extra)}")
     if not getattr(args, "handler", None):
         parser.print_help(sys.stderr)
         return 2

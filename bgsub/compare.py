@@ -810,56 +810,74 @@ def _run_job(job: _Job, methods: Sequence[str], params: Mapping[str, Mapping[str
                 job.out.mkdir(parents=True, exist_ok=True)
             except OSError as err:
                 raise OutputError(f"cannot create {job.out}: {err.strerror}") from None
-        with contextlib.ExitStack() as stack:
-            sinks = _open_mask_sinks(stack, job.out, methods, masks, size=mask_size,
-                                     fps=info.fps, overwrite=overwrite, written=written)
-            layout = TileLayout.for_frames(info.width, info.height, ["input", *methods],
-                                           tile_height=tile_height)
-            picture = None
-            if video and job.out is not None:
-                written.add(job.out / SIDE_BY_SIDE)
-                picture = stack.enter_context(VideoSink(
-                    job.out / SIDE_BY_SIDE, fps=info.fps, width=layout.width,
-                    height=layout.height, overwrite=overwrite))
-            frames = progress(source, total=info.frame_count, desc=job.name, quiet=quiet)
-            for index, frame in frames:
-                number = index + 1
-                labels = scoring.gt.labels(number) if number in to_score else None
-                outputs = []
-                for method, engine in engines.items():
-                    t0 = time.perf_counter()
-                    mask = engine.apply(frame)
-                    seconds[method] += time.perf_counter() - t0
-                    mask = _checked_mask(mask, method, info)
-                    status = getattr(engine, "last_status", "ok")
-                    if status is not None and status != "ok":
-                        not_ok[method] += 1
-                    if mask_size != (info.width, info.height):
-                        mask = cv2.resize(mask, mask_size, interpolation=cv2.INTER_NEAREST)
-                    if labels is not None:
-                        try:
-                            counts[method] += count_frame(mask, labels, scoring.gt.roi)
-                        except InputError as err:
-                            raise InputError(f"{scoring.gt.frames[number]}: {err}") from None
-                    outputs.append(mask)
-                if labels is not None:
-                    scored.append(number)
-                tiles = layout.compose(frame, outputs) if picture is not None else None
-                # A frame goes to every output or, when interrupted, to none.
-                with hold_interrupts():
-                    for method, mask in zip(engines, outputs):
-                        if method in sinks:
-                            sinks[method].write(mask, index)
-                    if picture is not None:
-                        picture.write(tiles)
-                n_frames += 1
+        stopped: Optional[KeyboardInterrupt] = None
+        try:
+            with contextlib.ExitStack() as stack:
+                sinks = _open_mask_sinks(stack, job.out, methods, masks, size=mask_size,
+                                         fps=info.fps, overwrite=overwrite, written=written)
+                layout = TileLayout.for_frames(info.width, info.height, ["input", *methods],
+                                               tile_height=tile_height)
+                picture = None
+                if video and job.out is not None:
+                    written.add(job.out / SIDE_BY_SIDE)
+                    picture = stack.enter_context(VideoSink(
+                        job.out / SIDE_BY_SIDE, fps=info.fps, width=layout.width,
+                        height=layout.height, overwrite=overwrite))
+                frames = progress(source, total=info.frame_count, desc=job.name, quiet=quiet)
+                for index, frame in frames:
+                    number = index + 1
+                    labels = scoring.gt.labels(number) if number in to_score else None
+                    outputs, took, frame_counts, trouble = [], {}, {}, set()
+                    for method, engine in engines.items():
+                        t0 = time.perf_counter()
+                        mask = engine.apply(frame)
+                        took[method] = time.perf_counter() - t0
+                        mask = _checked_mask(mask, method, info)
+                        status = getattr(engine, "last_status", "ok")
+                        if status is not None and status != "ok":
+                            trouble.add(method)
+                        if mask_size != (info.width, info.height):
+                            mask = cv2.resize(mask, mask_size, interpolation=cv2.INTER_NEAREST)
+                        if labels is not None:
+                            try:
+                                frame_counts[method] = count_frame(mask, labels,
+                                                                   scoring.gt.roi)
+                            except InputError as err:
+                                raise InputError(f"{scoring.gt.frames[number]}: {err}") from None
+                        outputs.append(mask)
+                    tiles = layout.compose(frame, outputs) if picture is not None else None
+                    # A frame goes to every output and into the figures or, when interrupted,
+                    # to none: a partial report describes exactly the masks written.
+                    with hold_interrupts():
+                        for method, mask in zip(engines, outputs):
+                            if method in sinks:
+                                sinks[method].write(mask, index)
+                        if picture is not None:
+                            picture.write(tiles)
+                        for method in engines:
+                            seconds[method] += took[method]
+                            not_ok[method] += method in trouble
+                            if labels is not None:
+                                counts[method] += frame_counts[method]
+                        if labels is not None:
+                            scored.append(number)
+                        n_frames += 1
+        except KeyboardInterrupt as stop:  # the sinks have closed their partial outputs
+            stopped = stop
     if n_frames == 0:
+        if stopped is not None:
+            raise stopped
         raise InputError(f"{job.frames}: no frames in the requested range")
 
-    short = source.truncation()  # decoding ended well before the end the video declares
+    # (Decoding ended well before the end the video declares; not asked when interrupted.)
+    short = source.truncation() if stopped is None else None
     if short:
         notes.append(short)
         warnings.append(short)
+    if stopped is not None:
+        notes.append(f"stopped by {str(stopped) or 'Ctrl-C'} after {n_frames} frames: the "
+                     "figures cover those")
+        warnings.append(f"{job.name}: {notes[-1]}")
     if scoring is not None:
         # `number` is now the last frame read. Frames the source promised but never delivered
         # (a video that states the wrong length, or none) are not scored, like those past an
@@ -872,7 +890,7 @@ def _run_job(job: _Job, methods: Sequence[str], params: Mapping[str, Mapping[str
             scoring = None
         else:
             notes.append(f"scored frames {_frame_span(scored)} ({len(scored)} frames)")
-            if len(scored) < len(scoring.requested):
+            if len(scored) < len(scoring.requested) and stopped is None:
                 notes.append(_short_input_note(len(scored), scoring.requested, number))
                 warnings.append(f"{job.name}: {notes[-1]}")
     rows = []
@@ -884,7 +902,19 @@ def _run_job(job: _Job, methods: Sequence[str], params: Mapping[str, Mapping[str
             eval_frames=len(scored) if scoring else 0,
             counts=counts[method] if scoring else None, metrics=metrics,
             not_ok=not_ok[method], notes=tuple(notes)))
+    if stopped is not None:
+        raise _Partial(rows, warnings, stopped)
     return rows, warnings
+
+
+class _Partial(Exception):
+    """Ctrl-C (or SIGTERM) stopped a job after some frames: its rows so far, and the interrupt
+    to raise again once they are in the report."""
+
+    def __init__(self, rows: List[ComparisonRow], warnings: List[str],
+                 stop: KeyboardInterrupt) -> None:
+        super().__init__("interrupted")
+        self.rows, self.warnings, self.stop = rows, warnings, stop
 
 
 def _checked_mask(mask: Any, method: str, info: VideoInfo) -> np.ndarray:
@@ -1082,14 +1112,27 @@ def compare_methods(
     written = _Outputs(out, overwrite=overwrite, methods=names, protect=_read_paths(jobs))
     outer = progress(jobs, total=len(jobs), desc="sequences", quiet=quiet or not is_dataset,
                      unit="seq")
+    stopped: Optional[KeyboardInterrupt] = None
     for job in outer:
-        rows, warnings = _run_job(
-            job, names, params, source_options=source_options, max_frames=max_frames,
-            skip_first=skip_first, ignore_roi_bmp=ignore_roi, masks=masks, video=video,
-            tile_height=tile_height, overwrite=overwrite, quiet=quiet, tolerate_empty=is_dataset,
-            written=written)
+        try:
+            rows, warnings = _run_job(
+                job, names, params, source_options=source_options, max_frames=max_frames,
+                skip_first=skip_first, ignore_roi_bmp=ignore_roi, masks=masks, video=video,
+                tile_height=tile_height, overwrite=overwrite, quiet=quiet,
+                tolerate_empty=is_dataset, written=written)
+        except _Partial as partial:
+            rows, warnings, stopped = partial.rows, partial.warnings, partial.stop
+        except KeyboardInterrupt as stop:  # before the job's first frame
+            if not report.rows:
+                raise
+            rows, warnings, stopped = [], [], stop
         report.rows.extend(rows)
         report.warnings.extend(warnings)
+        if stopped is not None:
+            break
+    if stopped is not None and len(report.rows) < len(jobs) * len(names):
+        report.warnings.append(f"stopped by {str(stopped) or 'Ctrl-C'}: "
+                               f"{len(report.rows) // len(names)} of {len(jobs)} inputs run")
     if is_dataset:
         report.families, report.overall = _means(report.rows, names)
     if plan_notes:
@@ -1098,4 +1141,9 @@ def compare_methods(
         written.clear_previous()
         report.outputs = list(written.paths)
         report.write(out)
+    if stopped is not None:
+        # The figures of the frames processed are in the report folder; the caller learns of
+        # the interrupt, with the report attached (bgsub compare prints it).
+        stopped.report = report  # type: ignore[attr-defined]
+        raise stopped
     return report

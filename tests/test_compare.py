@@ -375,6 +375,65 @@ def test_ctrl_c_while_a_mask_is_written_leaves_every_output_the_same_length(
     capture.release()
 
 
+def _ctrl_c_at_frame(monkeypatch, frame: int, n_methods: int = len(METHODS)) -> None:
+    """Ctrl-C once the first method's mask of ``frame`` (1-based) is written."""
+    import signal
+
+    from bgsub import sinks
+
+    write_png = sinks.MaskFolderSink._write
+    calls = []
+
+    def write_then_ctrl_c(self, mask, index):
+        write_png(self, mask, index)
+        calls.append(index)
+        if len(calls) == n_methods * (frame - 1) + 1:
+            signal.raise_signal(signal.SIGINT)
+
+    monkeypatch.setattr(sinks.MaskFolderSink, "_write", write_then_ctrl_c)
+
+
+def test_ctrl_c_writes_the_report_of_the_frames_processed(sequence: Path, tmp_path: Path,
+                                                          monkeypatch) -> None:
+    _ctrl_c_at_frame(monkeypatch, 3)
+    out = tmp_path / "report"
+    with pytest.raises(KeyboardInterrupt) as stop:
+        compare_methods(sequence, methods=METHODS, report_dir=out)
+    report = stop.value.report
+    assert [(r.method, r.frames, r.eval_frames) for r in report.rows] == [
+        (m, 3, 3) for m in METHODS]
+    assert "famA_one: stopped by Ctrl-C after 3 frames: the figures cover those" in \
+        report.warnings
+    written = json.loads((out / "report.json").read_text())
+    assert [row["eval_frames"] for row in written["rows"]] == [3, 3]
+    masks = {m: evaluate_sequence(out / m, sequence, last_frame=3) for m in METHODS}
+    for row in report.rows:
+        assert row.metrics.f_measure == pytest.approx(masks[row.method].metrics.f_measure)
+
+
+def test_ctrl_c_in_the_cli_prints_the_partial_report_and_exits_130(
+        sequence: Path, tmp_path: Path, monkeypatch, capsys) -> None:
+    _ctrl_c_at_frame(monkeypatch, 3)
+    out = tmp_path / "report"
+    code = main(["compare", str(sequence), "--methods", ",".join(METHODS), "-o", str(out)])
+    captured = capsys.readouterr()
+    assert code == 130
+    assert "framediff" in captured.out and "mog2" in captured.out  # the table
+    assert f"partial report written to {out / 'report.txt'}" in captured.err
+    assert captured.err.rstrip().endswith("bgsub: interrupted")
+
+
+def test_ctrl_c_in_the_second_sequence_keeps_the_first(tmp_path: Path, monkeypatch) -> None:
+    root = tmp_path / "data"
+    write_sequence(root / "famA_one", seed=0)
+    write_sequence(root / "famA_two", seed=1)
+    _ctrl_c_at_frame(monkeypatch, 8 + 2)  # frame 2 of the second sequence
+    with pytest.raises(KeyboardInterrupt) as stop:
+        compare_methods(root, methods=METHODS, report_dir=tmp_path / "report")
+    rows = {(r.name, r.method): r.frames for r in stop.value.report.rows}
+    assert rows == {("famA_one", m): 8 for m in METHODS} | {("famA_two", m): 2 for m in METHODS}
+
+
 # --------------------------------------------------------------------------------------------
 # --overwrite: this run's outputs only, and nothing compare did not write goes
 # --------------------------------------------------------------------------------------------

@@ -147,16 +147,26 @@ def run(args: argparse.Namespace) -> int:
     params = parse_method_params(args.param, methods)
     if args.max_frames is not None and args.max_frames < 1:
         raise InputError(f"--max-frames takes a number >= 1, not {args.max_frames}")
-    report = compare_methods(
-        args.input, methods=methods, report_dir=args.output, gt=args.gt, params=params,
-        skip_first=args.skip_first,
-        ignore_roi_bmp=None if args.roi_bmp is None else not args.roi_bmp,
-        max_frames=args.max_frames, masks=args.masks, video=not args.no_video,
-        tile_height=args.tile_height,
-        overwrite=args.overwrite, quiet=args.quiet, **source_kwargs(args),
-    )
+    try:
+        report = compare_methods(
+            args.input, methods=methods, report_dir=args.output, gt=args.gt, params=params,
+            skip_first=args.skip_first,
+            ignore_roi_bmp=None if args.roi_bmp is None else not args.roi_bmp,
+            max_frames=args.max_frames, masks=args.masks, video=not args.no_video,
+            tile_height=args.tile_height,
+            overwrite=args.overwrite, quiet=args.quiet, **source_kwargs(args),
+        )
+    except KeyboardInterrupt as stop:
+        partial = getattr(stop, "report", None)
+        if partial is not None:  # the frames done before Ctrl-C were scored and reported
+            _show(partial, args, "partial report")
+        raise
+    _show(report, args, "report")
+    return 0
+
+
+def _show(report: Any, args: argparse.Namespace, what: str) -> None:
     print(report.to_text())  # the result itself: printed with --quiet too
     for warning in report.warnings:  # e.g. an input shorter than its ground truth
         warn(warning)
-    note(f"report written to {Path(args.output) / 'report.txt'} (.csv, .json)", quiet=args.quiet)
-    return 0
+    note(f"{what} written to {Path(args.output) / 'report.txt'} (.csv, .json)", quiet=args.quiet)

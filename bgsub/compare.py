@@ -44,6 +44,7 @@ import glob
 import io
 import json
 import math
+import shutil
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -54,7 +55,7 @@ import numpy as np
 
 from bgsub.cli.common import progress
 from bgsub.engines import available_engines, create_engine, get_engine_spec
-from bgsub.errors import InputError, OutputError, ProcessingError, given_path
+from bgsub.errors import BgsubError, InputError, OutputError, ProcessingError, given_path
 from bgsub.evaluation import (
     METRIC_NAMES,
     METRIC_TITLES,
@@ -467,10 +468,11 @@ _FILE_SUFFIXES = {".txt", ".csv", ".json", ".md", ".html", ".htm", ".pdf", ".png
                   ".mkv", ".avi", ".mp4", ".mov", ".webm"}
 
 
-def _check_report_dir(report_dir: PathLike, overwrite: bool) -> None:
+def _check_report_dir(report_dir: PathLike, overwrite: bool) -> bool:
     """Create ``report_dir`` or check that it may be filled; raise :class:`OutputError` when it
     holds results (without ``overwrite``), is a file, looks like a file name, or cannot be
-    made. ``report_dir`` as given: a trailing slash marks a dotted name as a folder."""
+    made. ``report_dir`` as given: a trailing slash marks a dotted name as a folder. Returns
+    whether it was created here."""
     given_path(report_dir, what="report folder", hint="a folder name such as cmp/",
                error=OutputError)
     if Path(report_dir).suffix.lower() in _FILE_SUFFIXES and not names_a_folder(report_dir):
@@ -478,7 +480,8 @@ def _check_report_dir(report_dir: PathLike, overwrite: bool) -> None:
             f"{report_dir}: the report goes in a folder (report.txt, .csv and .json are written "
             "inside it); give a folder name such as cmp/")
     report_dir = Path(report_dir)
-    if report_dir.exists():
+    existed = report_dir.exists()
+    if existed:
         if not report_dir.is_dir():
             raise OutputError(f"report folder {report_dir} exists and is not a folder")
         if any(report_dir.iterdir()) and not overwrite:
@@ -488,6 +491,14 @@ def _check_report_dir(report_dir: PathLike, overwrite: bool) -> None:
         report_dir.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise OutputError(f"cannot create report folder {report_dir}: {err.strerror}") from None
+    return not existed
+
+
+def _remove_if_no_files(folder: Path) -> None:
+    """Remove ``folder`` (made by this run) when it holds no file, only empty folders: a run
+    refused before writing anything leaves no trace."""
+    if folder.is_dir() and not any(p.is_file() for p in folder.rglob("*")):
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 # --------------------------------------------------------------------------------------------
@@ -1095,8 +1106,7 @@ def compare_methods(
     for job in jobs:  # bad ground truth (e.g. a mis-sized ROI.bmp) fails before any output
         if job.gt is not None:
             open_ground_truth(job.gt, ignore_roi_bmp=ignore_roi)
-    if out is not None:
-        _check_report_dir(report_dir, overwrite)
+    created = _check_report_dir(report_dir, overwrite) if out is not None else False
     source_options = dict(start=start, stop=stop, step=step, scale=scale, width=width, fps=fps)
 
     report = ComparisonReport(
@@ -1113,23 +1123,28 @@ def compare_methods(
     outer = progress(jobs, total=len(jobs), desc="sequences", quiet=quiet or not is_dataset,
                      unit="seq")
     stopped: Optional[KeyboardInterrupt] = None
-    for job in outer:
-        try:
-            rows, warnings = _run_job(
-                job, names, params, source_options=source_options, max_frames=max_frames,
-                skip_first=skip_first, ignore_roi_bmp=ignore_roi, masks=masks, video=video,
-                tile_height=tile_height, overwrite=overwrite, quiet=quiet,
-                tolerate_empty=is_dataset, written=written)
-        except _Partial as partial:
-            rows, warnings, stopped = partial.rows, partial.warnings, partial.stop
-        except KeyboardInterrupt as stop:  # before the job's first frame
-            if not report.rows:
-                raise
-            rows, warnings, stopped = [], [], stop
-        report.rows.extend(rows)
-        report.warnings.extend(warnings)
-        if stopped is not None:
-            break
+    try:
+        for job in outer:
+            try:
+                rows, warnings = _run_job(
+                    job, names, params, source_options=source_options, max_frames=max_frames,
+                    skip_first=skip_first, ignore_roi_bmp=ignore_roi, masks=masks, video=video,
+                    tile_height=tile_height, overwrite=overwrite, quiet=quiet,
+                    tolerate_empty=is_dataset, written=written)
+            except _Partial as partial:
+                rows, warnings, stopped = partial.rows, partial.warnings, partial.stop
+            except KeyboardInterrupt as stop:  # before the job's first frame
+                if not report.rows:
+                    raise
+                rows, warnings, stopped = [], [], stop
+            report.rows.extend(rows)
+            report.warnings.extend(warnings)
+            if stopped is not None:
+                break
+    except (BgsubError, KeyboardInterrupt):  # refused or stopped before any result
+        if created:
+            _remove_if_no_files(out)
+        raise
     if stopped is not None and len(report.rows) < len(jobs) * len(names):
         report.warnings.append(f"stopped by {str(stopped) or 'Ctrl-C'}: "
                                f"{len(report.rows) // len(names)} of {len(jobs)} inputs run")

@@ -639,3 +639,21 @@ def test_a_truncated_video_is_reported(tmp_path: Path) -> None:
     assert any("ended after" in w and "of the 40 frames its header declares" in w
                for w in report.warnings)
     assert not compare_methods(whole, methods=["framediff"]).warnings
+
+
+def test_a_refused_input_leaves_no_report_folder(tmp_path: Path, capsys) -> None:
+    (tmp_path / "empty.mp4").write_bytes(b"")
+    out = tmp_path / "report"
+    assert main(["compare", str(tmp_path / "empty.mp4"), "--methods", "mog2",
+                 "-o", str(out)]) == 2
+    assert "cannot read it as a video" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_a_refused_input_leaves_an_existing_report_folder_alone(tmp_path: Path) -> None:
+    (tmp_path / "empty.mp4").write_bytes(b"")
+    out = tmp_path / "report"
+    out.mkdir()
+    with pytest.raises(InputError):
+        compare_methods(tmp_path / "empty.mp4", methods=["mog2"], report_dir=out)
+    assert out.is_dir()

@@ -294,3 +294,14 @@ def test_a_max_motion_no_search_reaches_is_warned_about_once(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("bgsub: warning: --max-motion 400 is beyond what 160x120 frames allow") == 1
     assert "Warning" not in err  # no Python warning lines
+
+
+def test_one_image_with_a_flo_output_asks_for_the_pair(pair, tmp_path, bgsub_error):
+    err = bgsub_error(["flow", pair[0], "-o", tmp_path / "f.flo"])
+    assert f"{pair[0]} is one image: a .flo file needs the pair" in err
+
+
+def test_two_videos_as_a_pair_are_named_videos_not_corrupt_images(tmp_path, bgsub_error):
+    clip = _video_file(tmp_path)
+    err = bgsub_error(["flow", clip, clip, "-o", tmp_path / "f.flo"])
+    assert f"{clip} is a video, not an image: give a video alone" in err

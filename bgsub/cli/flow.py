@@ -247,6 +247,11 @@ def _check_video_output(args: argparse.Namespace) -> None:
 
     check_distinct(_input_paths(args), [("-o", args.output)])
     if Path(args.output).suffix.lower() == ".flo":
+        from bgsub.sources import IMAGE_EXTENSIONS
+
+        if Path(args.input).suffix.lower() in IMAGE_EXTENSIONS:
+            raise InputError(f"{args.input} is one image: a .flo file needs the pair "
+                             f"(bgsub flow FRAME1 FRAME2 -o {args.output})")
         raise OutputError(f"{args.output}: a video input gives a picture video (-o clip_flow.mp4); "
                           "give two images for a .flo file")
     check_video_output(args.output, overwrite=args.overwrite)

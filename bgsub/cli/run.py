@@ -153,13 +153,15 @@ def _numbering_notice(source: Any, args: argparse.Namespace) -> Optional[str]:
             f"the whole folder with --start to keep the file names' numbers")
 
 
-def _eval_notice(args: argparse.Namespace) -> Optional[str]:
+def _eval_notice(args: argparse.Namespace, renumbered: bool) -> Optional[str]:
     """How to score a mask video that does not hold every input frame from the first.
 
     A video carries no frame numbers, so `bgsub eval` takes its k-th frame as frame k (1-based)
     unless given the range the masks were made from; a png folder's names carry the numbers.
+    ``renumbered``: the input's positions are not its files' numbers (part of a sequence, see
+    :func:`_numbering_notice`), so no range of positions names ground-truth frames.
     """
-    if not is_video_path(args.output) or (args.start, args.step) == (0, 1):
+    if not is_video_path(args.output) or (args.start, args.step) == (0, 1) or renumbered:
         return None
     flags = VideoFrames(args.start, args.step, args.stop).flags()
     return (f"{args.output} holds no frame numbers: score it with `bgsub eval "
@@ -182,7 +184,8 @@ def run(args: argparse.Namespace) -> int:
     # What `bgsub analogy` and `bgsub flow` say of a random-dot model on natural images.
     common.warn_if_binary_model_on_source(getattr(engine, "model", None), source,
                                           what=args.input)
-    for notice in (_fps_notice(info, args), _numbering_notice(source, args)):
+    renumbered = _numbering_notice(source, args)
+    for notice in (_fps_notice(info, args), renumbered):
         if notice:
             common.note(notice, quiet=args.quiet)
 
@@ -208,7 +211,7 @@ def run(args: argparse.Namespace) -> int:
         common.warn(short)
     written = [p for p in (args.output, args.vis, args.flow_vis, args.motion) if p]
     common.note(_summary(stats, method, written), quiet=args.quiet)
-    eval_notice = _eval_notice(args)  # how to score what was written, once it is
+    eval_notice = _eval_notice(args, bool(renumbered))  # how to score what was written
     if eval_notice and stats.frames:
         common.note(eval_notice, quiet=args.quiet)
     return 0

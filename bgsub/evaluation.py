@@ -37,12 +37,18 @@ Predictions
     (``bgsub eval --start/--step/--stop``) say which input frames it holds, with the meaning of
     ``bgsub run``'s options of those names (0-based, ``range(start, stop, step)``; defaults 0, 1,
     the end): the same flags that wrote it. Only the frames they cover are evaluated, and
-    ``skip_first`` leaves out the video's first frame. Folders and Python masks name their frames
-    themselves: giving these options with them is an error (ignoring them would hide that the
-    user expected something to shift). A pixel is foreground when its value is > 127 (colour
-    masks are converted to gray first). For a dataset, the prediction of
-    the sequence at ``GT_ROOT/REL`` (``REL`` = its path relative to the root, e.g.
-    ``cameraJitter/traffic``; ``NAME`` = its folder name) is the first that exists of
+    ``skip_first`` leaves out the video's first frame. A folder's masks carry their frame
+    numbers: there the same options only select the frames `bgsub run` read with them (``--step
+    2`` wrote ``bin000001.png``, ``bin000003.png``, ...: only frames 1, 3, ... are evaluated), with
+    the same ``skip_first``. Python masks name their frames themselves: giving these options with
+    them is an error (ignoring them would hide that the user expected something to shift). A
+    prediction longer than the ground truth (a mask video with a frame past its last frame, or
+    masks numbered past it) is scored on the frames with ground truth, with a warning in
+    :attr:`SequenceResult.warnings`: often the masks of another sequence. A pixel is
+    foreground when its value is > 127 (colour masks are converted to gray first). For a
+    dataset, the prediction of the sequence at ``GT_ROOT/REL`` (``REL`` = its path relative to
+    the root, e.g. ``cameraJitter/traffic``; ``NAME`` = its folder name) is the first that
+    exists of
     ``PRED_ROOT/REL/``, ``PRED_ROOT/NAME/``, ``PRED_ROOT/REL.<ext>``, ``PRED_ROOT/NAME.<ext>``
     with ``<ext>`` a video extension (:data:`VIDEO_EXTENSIONS`). A `bgsub compare` report holds
     one mask set per method (``METHOD/`` or ``METHOD.mkv``, inside ``REL/`` for a dataset):
@@ -69,7 +75,10 @@ Missing predictions
     A frame to evaluate without a prediction (a missing png, or a video that ends early) is an
     :class:`InputError` listing how many and the first ones, unless ``allow_missing``: then each
     missing frame counts as an all-background prediction (so its objects are false negatives;
-    missing output is never rewarded) and the result reports the count.
+    missing output is never rewarded) and the result reports the count. When a folder's masks
+    among those frames are one evenly spaced run (a part of the sequence, or every N-th frame),
+    the error, and :attr:`SequenceResult.missing_hint`, name the options that score just them
+    (e.g. ``--first-frame 991 --last-frame 1030``, or ``--step 2``).
 
 Metrics (CDnet 2014; counts summed over all evaluated frames of a sequence)
     Recall = TP/(TP+FN), Specificity = TN/(TN+FP), FPR = FP/(FP+TN), FNR = FN/(TP+FN),
@@ -631,16 +640,59 @@ class _FolderReader(_PredictionReader):
     def frame_name(self, number: int) -> str:
         return f"bin{number:06d}.png"
 
+    def range_hint(self, selected: Sequence[int], *, skip_first: bool = False) -> str:
+        """``"to score just the frames with a mask (40, bin000991.png-bin001030.png), use
+        --first-frame 991 --last-frame 1030"``: the options that score exactly those of the
+        ``selected`` ground-truth frames (before any --start/--step/--stop) that have a mask,
+        when these masks form one evenly spaced run (what `bgsub run --start/--step/--stop`
+        writes); ``""`` when they do not (holes no range leaves out) or none is there."""
+        lo, hi = selected[0], selected[-1]
+        inside = sorted(n for n in self.files if lo <= n <= hi)
+        step = _even_step(inside)
+        if step is None:
+            return ""
+        first, last = inside[0], inside[-1]
+        if step == 1:
+            chosen = [n for n in selected if first <= n <= last]
+            flags = " ".join(f for f in (f"--first-frame {first}" if first > lo else "",
+                                         f"--last-frame {last}" if last < hi else "") if f)
+        else:
+            # The run's own --start when every mask is of the run (they give the same frames).
+            everything = sorted(self.files)
+            start = (everything[0] if _even_step(everything) == step else first) - 1
+            frames = VideoFrames(start, step, last if last + step <= hi else None)
+            chosen = [n for n in selected
+                      if frames.covers(n) and not (skip_first and n == frames.number(0))]
+            flags = frames.flags()
+        if not flags or not chosen or any(n not in self.files for n in chosen):
+            return ""
+        span = (f"{self.frame_name(first)}-{self.frame_name(last)}" if len(inside) > 1
+                else self.frame_name(first))
+        every = f", one frame in {step}" if step > 1 else ""
+        return f"to score just the frames with a mask ({len(inside)}, {span}{every}), use {flags}"
+
     def missing_message(self, missing: Sequence[int], total: int) -> str:
         text = super().missing_message(missing, total)
         if len(missing) == total:  # not one wanted number: the masks are numbered otherwise
             low, high = min(self.files), max(self.files)
             text += f"; the folder's masks are numbered {low}-{high}"
-            if low == 1:
+            # (Masks among the wanted numbers, just not on them: a --step of another phase.)
+            if low == 1 and not any(min(missing) <= n <= max(missing) for n in self.files):
                 text += (" (`bgsub run` numbers masks by position in its input: run on part of "
                          "a folder or glob, they start at 1 whatever the frames' names; run it "
                          "on the whole folder with --start/--stop to keep the frame numbers)")
         return text
+
+
+def _even_step(numbers: Sequence[int]) -> Optional[int]:
+    """The spacing of ascending ``numbers`` when it is the same throughout (1 for one number),
+    else None (also for none)."""
+    if not numbers:
+        return None
+    if len(numbers) == 1:
+        return 1
+    step = numbers[1] - numbers[0]
+    return step if all(b - a == step for a, b in zip(numbers, numbers[1:])) else None
 
 
 class _VideoReader(_PredictionReader):
@@ -649,6 +701,11 @@ class _VideoReader(_PredictionReader):
         self.path = path
         self.frames = frames
         self.frames_read = 0
+        #: The ground truth's last frame number, when it is known (set before :meth:`read`).
+        self.gt_end: Optional[int] = None
+        #: After :meth:`read`: ``(k, total)`` when the video has a frame ``k`` (0-based) past
+        #: ``gt_end``; ``total`` is its frame count when the container states one above ``k``.
+        self.past_gt: Optional[Tuple[int, Optional[int]]] = None
 
     def read(self, numbers: Sequence[int]) -> Iterator[Tuple[int, np.ndarray]]:
         from bgsub.sources import open_source  # the frame reader (another stage's module)
@@ -658,9 +715,26 @@ class _VideoReader(_PredictionReader):
         # ``last``. Reading from the start (not from the first wanted frame) lets a video that
         # ends before the first wanted frame report missing frames instead of failing to open.
         last = (max(numbers) - 1 - self.frames.start) // self.frames.step
-        with open_source(str(self.path), stop=last + 1) as source:
+        # A video with a frame past the ground truth's end is longer than the sequence it is
+        # scored against: often another clip's masks. Its frame ``past`` is decoded to know:
+        # at no cost when it follows ``last``; else only when the container's (possibly
+        # estimated) count says the video reaches it.
+        past = None
+        if self.gt_end is not None:
+            past = max(0, (self.gt_end - 1 - self.frames.start) // self.frames.step + 1)
+            if self.frames.stop is not None and self.frames.number(past) > self.frames.stop:
+                past = None  # the video's range ends before: a longer video is no sign
+        with open_source(str(self.path)) as source:
+            total = source.info.frame_count
+            end = last
+            if past is not None and (past == last + 1 or (total is not None and total > past)):
+                end = past
             for k, frame in source:
+                if k > end:
+                    break
                 self.frames_read = k + 1
+                if k == past:
+                    self.past_gt = (past, total if total is not None and total > past else None)
                 number = self.frames.number(k)
                 if number in wanted:
                     yield number, _to_gray(frame, f"{self.path} frame {k + 1}")
@@ -700,8 +774,7 @@ def _prediction_reader(pred: Optional[Prediction], video: VideoFrames = VideoFra
         return _IterableReader((), label="(no prediction)")
     if isinstance(pred, (str, os.PathLike)):
         path = Path(pred)
-        if path.is_dir():
-            _refuse_video_frames(video, f"{path} is a folder of binNNNNNN.png masks")
+        if path.is_dir():  # its numbers are the frames': a range only selects among them
             return _FolderReader(path, gt)
         if path.is_file():
             return _VideoReader(path, video)
@@ -717,8 +790,8 @@ def _refuse_video_frames(video: VideoFrames, what: str) -> None:
     """
     if not video.is_default:
         raise InputError(f"--start/--step/--stop ({video.flags()}) place the frames of a mask "
-                         f"video, but {what} that number their own frames; use "
-                         "--first-frame/--last-frame to choose frames")
+                         f"video or select those of a mask folder, but {what} that number "
+                         "their own frames; use first_frame/last_frame/frames to choose frames")
 
 
 # --------------------------------------------------------------------------------------------
@@ -754,6 +827,12 @@ class SequenceResult:
     last_frame: int
     missing: List[int] = field(default_factory=list)
     notes: List[str] = field(default_factory=list)
+    #: Signs that the prediction and the ground truth may not belong together (the CLI prints
+    #: them as warnings), e.g. a mask video with more frames than the ground truth.
+    warnings: List[str] = field(default_factory=list)
+    #: With ``missing``: the options that score just the frames that have a mask, when those
+    #: form one evenly spaced run (e.g. ``"to score just ... use --first-frame 5"``), else "".
+    missing_hint: str = ""
 
     @property
     def metrics(self) -> Metrics:
@@ -773,6 +852,7 @@ class SequenceResult:
             "counts": self.counts.as_dict(),
             "metrics": self.metrics.as_dict(),
             "notes": list(self.notes),
+            "warnings": list(self.warnings),
         }
 
 
@@ -873,7 +953,8 @@ def evaluate_sequence(
         For a mask video: the input frames it holds, as ``bgsub run --start --step --stop``
         (0-based, ``range(video_start, video_stop, video_step)``; see :class:`VideoFrames`).
         Only those frames are evaluated; ``skip_first`` also leaves out the video's first one.
-        Anything but the defaults (0, 1, None) is an error for other predictions.
+        For a folder, the same frames are selected among its numbered masks. Anything but the
+        defaults (0, 1, None) is an error for masks from Python.
     quiet : bool
         No progress bar (it is also off when stderr is not a terminal).
 
@@ -885,7 +966,7 @@ def evaluate_sequence(
     ------
     InputError
         Bad ground truth, a prediction of a size that is not a uniform scale of the ground
-        truth's, a video frame range for a prediction that is not a video, or missing
+        truth's, a video frame range for masks from Python, or missing
         predictions without ``allow_missing``.
     """
     video = VideoFrames(video_start, video_step, video_stop)
@@ -894,23 +975,50 @@ def evaluate_sequence(
                                skip_first=skip_first)
     reader = _prediction_reader(pred, video, gt.path)
     # A dataset sequence without any prediction (pred None, allow_missing) counts the frames the
-    # videos of the others hold, so the frame totals of the two agree.
-    video_range = not video.is_default and (pred is None or isinstance(reader, _VideoReader))
+    # videos of the others hold, so the frame totals of the two agree. A folder's masks carry
+    # their frame numbers: the range selects among them the frames the run read, as for a video.
+    video_range = not video.is_default and (
+        pred is None or isinstance(reader, (_VideoReader, _FolderReader)))
+    selected = numbers  # before the range: what a suggested range is chosen from
     if video_range:
         # Frames the run did not read have no mask by design: they are not "missing". The
         # video's first frame is the one a background model met without history.
         held = [n for n in numbers
                 if video.covers(n) and not (skip_first and n == video.number(0))]
         if not held:  # select_frames() never returns an empty list
+            what = "masks" if isinstance(reader, _FolderReader) else "mask video"
             raise InputError(f"no ground-truth frames left to evaluate in {gt.path} among the "
-                             f"frames of mask video {reader.label} ({video.flags()}): the "
+                             f"frames of {what} {reader.label} ({video.flags()}): the "
                              f"ground truth's selected frames are {numbers[0]}-{numbers[-1]}")
         numbers = held
+    warnings: List[str] = []
+    gt_end = max(gt.frames)
+    if isinstance(reader, _FolderReader):
+        beyond = [n for n in reader.files if n > gt_end]
+        if beyond:
+            warnings.append(
+                f"{len(beyond)} of the {len(reader.files)} masks in {reader.label} are numbered "
+                f"past the ground truth's last frame (up to {reader.frame_name(max(beyond))}; "
+                f"{gt.path} has {len(gt.frames)} ground-truth frames, up to "
+                f"{gt.frames[gt_end].name}): check that these masks belong to this sequence; "
+                "only frames with ground truth were scored")
+    elif isinstance(reader, _VideoReader):
+        reader.gt_end = gt_end
+    # Masks of a contiguous part (or every N-th frame) of the sequence: the options that score
+    # just those, rather than --allow-missing, which scores the rest as missed objects.
+    missing_hint = (reader.range_hint(selected, skip_first=skip_first)
+                    if isinstance(reader, _FolderReader) else "")
+
+    def advice(count: int) -> str:
+        if missing_hint:
+            return (f"; {missing_hint}; or use --allow-missing to count the {count} frames "
+                    "without one as background")
+        return "; use --allow-missing to count them as background"
+
     if isinstance(reader, _FolderReader) and not allow_missing:
         absent = [n for n in numbers if n not in reader.files]
         if absent:  # fail before reading anything
-            raise InputError(reader.missing_message(absent, len(numbers))
-                             + "; use --allow-missing to count them as background")
+            raise InputError(reader.missing_message(absent, len(numbers)) + advice(len(absent)))
 
     counts = Counts()
     seen = set()
@@ -948,7 +1056,7 @@ def evaluate_sequence(
         missing = [n for n in numbers if n not in seen]
         if missing and not allow_missing:
             raise InputError(reader.missing_message(missing, len(numbers))
-                             + "; use --allow-missing to count them as background")
+                             + advice(len(missing)))
         for number in missing:  # an absent mask is an all-background prediction
             labels = gt.labels(number)
             counts += count_frame(np.zeros_like(labels), labels, gt.roi)
@@ -960,7 +1068,20 @@ def evaluate_sequence(
     if missing:
         notes.append(f"{len(missing)} missing frames counted as background")
     if video_range:
-        notes.append(f"mask video read with {video.flags()}")
+        notes.append(f"only the frames of {video.flags()} scored"
+                     if isinstance(reader, _FolderReader)
+                     else f"mask video read with {video.flags()}")
+    if isinstance(reader, _VideoReader) and reader.past_gt is not None:
+        past, total = reader.past_gt
+        held = f"{total} frames" if total is not None else f"more than {past} frames"
+        if total is not None and not video.is_default:
+            held += (f" (frames {video.number(0)}-{video.number(total - 1)} read with "
+                     f"{video.flags()})")
+        warnings.append(
+            f"mask video {reader.label} holds {held}, past the end of the ground truth: "
+            f"{gt.path} has {len(gt.frames)} ground-truth frames, up to "
+            f"{gt.frames[gt_end].name}; check that the video belongs to this sequence (only "
+            "frames with ground truth were scored)")
     if scaled_from is not None:
         notes.append(f"{scaled_from} predictions scaled to {gt.width}x{gt.height} (nearest "
                      "neighbour)")
@@ -983,6 +1104,8 @@ def evaluate_sequence(
         last_frame=numbers[-1],
         missing=missing,
         notes=notes,
+        warnings=warnings,
+        missing_hint=missing_hint if missing else "",
     )
 
 
@@ -1046,8 +1169,8 @@ def evaluate_dataset(
         Score this method's masks of a `bgsub compare` report (see :func:`find_prediction`).
     **options
         Passed to :func:`evaluate_sequence` (``ignore_roi_bmp``, ``skip_first``, ...);
-        ``video_start``/``video_step``/``video_stop`` apply to every sequence and need every
-        prediction found to be a mask video.
+        ``video_start``/``video_step``/``video_stop`` apply to every sequence (mask videos and
+        folders alike).
 
     Returns
     -------
@@ -1073,11 +1196,6 @@ def evaluate_dataset(
         of = f" of method {method!r}" if method is not None else ""
         raise InputError(f"no prediction{of} in {pred_root} for {len(absent)} of {len(rels)} "
                          f"sequences ({listed}); use --allow-missing to count them as background")
-    video = VideoFrames(options.get("video_start", 0), options.get("video_step", 1),
-                        options.get("video_stop"))
-    for pred in preds.values():  # before any sequence is scored
-        if pred is not None and pred.is_dir():
-            _refuse_video_frames(video, f"{pred} is a folder of binNNNNNN.png masks")
     results = []
     for seq, rel in zip(sequences, rels):
         pred = preds[rel]

@@ -162,10 +162,50 @@ def test_eval_short_mask_video_error_names_the_run_flags(scene, tmp_path, bgsub_
     assert "--start/--step/--stop" in err
 
 
-def test_eval_video_flags_refused_for_a_png_folder(case, bgsub_error):
-    pred, seq = case
-    err = bgsub_error(["eval", pred, seq, "--start", "1"])
-    assert "folder of binNNNNNN.png" in err and "--first-frame" in err
+def test_eval_step_selects_the_frames_of_a_png_folder_like_those_of_a_video(scene, tmp_path,
+                                                                            capsys):
+    # The README's `bgsub run ... -o stepd --step 2`: bin000001.png, bin000003.png, ...
+    for out in ("stepd", "stepd.mkv"):
+        assert main(["run", str(scene), "-o", str(tmp_path / out), "-m", "framediff",
+                     "--step", "2", "-q"]) == 0
+    scores = []
+    for out in ("stepd", "stepd.mkv"):
+        assert main(["eval", str(tmp_path / out), str(scene), "--step", "2", "--json"]) == 0
+        (only,) = json.loads(capsys.readouterr().out)["sequences"]
+        scores.append((only["frames"], only["missing"], only["counts"]))
+    assert scores[0] == scores[1] and scores[0][:2] == (8, 0)
+
+
+def test_eval_missing_frames_of_a_part_of_the_sequence_name_the_options(scene, tmp_path,
+                                                                       capsys, bgsub_error):
+    masks = tmp_path / "part"
+    assert main(["run", str(scene), "-o", str(masks), "-m", "framediff", "--start", "5",
+                 "--stop", "11", "-q"]) == 0
+    err = bgsub_error(["eval", masks, scene])
+    assert "10 of 16 frames to evaluate have no prediction" in err
+    assert ("to score just the frames with a mask (6, bin000006.png-bin000011.png), use "
+            "--first-frame 6 --last-frame 11; or use --allow-missing to count the 10 frames "
+            "without one as background") in err
+    assert main(["eval", str(masks), str(scene), "--first-frame", "6", "--last-frame",
+                 "11"]) == 0
+    captured = capsys.readouterr()
+    assert "frames 6-11" in captured.out and captured.err == ""
+    assert main(["eval", str(masks), str(scene), "--allow-missing", "-q"]) == 0
+    assert "use --first-frame 6 --last-frame 11" in capsys.readouterr().err
+
+
+def test_eval_warns_of_a_mask_video_longer_than_the_ground_truth(scene, tmp_path, capsys):
+    video = tmp_path / "other.mkv"
+    with open_mask_sink(video, width=64, height=48, fps=25.0) as sink:
+        for k in range(24):
+            sink.write(np.zeros((48, 64), np.uint8), k)
+    assert main(["eval", str(video), str(scene), "-q"]) == 0  # scored, not refused
+    captured = capsys.readouterr()
+    assert "pan_s1" in captured.out
+    (line,) = captured.err.splitlines()
+    assert line.startswith("bgsub: warning: pan_s1: mask video ") and (
+        "holds 24 frames, past the end of the ground truth" in line
+        and "has 16 ground-truth frames" in line)
 
 
 def test_eval_scales_masks_run_wrote_at_another_width(scene, tmp_path, capsys):

@@ -308,12 +308,100 @@ def test_mask_video_stop_ends_the_frames_and_skip_first_drops_its_first(tmp_path
     assert result.counts == evaluate_sequence(bins, gt, frames=[6, 7, 8]).counts
 
 
-def test_video_frame_range_refused_for_predictions_that_number_their_frames(tmp_path):
-    video, bins, gt = _ranged_video(tmp_path, range(10))
-    with pytest.raises(InputError, match=r"--start 1.*folder of binNNNNNN\.png"):
-        evaluate_sequence(bins, gt, video_start=1)
+def test_a_folder_range_selects_the_frames_bgsub_run_read(tmp_path):
+    """The masks `bgsub run --start 1 --step 3` writes to a folder (bin000002.png,
+    bin000005.png, ...) score with the same flags, as the same masks in a video do."""
+    video, bins, gt = _ranged_video(tmp_path, range(1, 10, 3))  # frames 2, 5, 8
+    stepped = write_bins(tmp_path / "stepped", {n: cv2.imread(str(bins / f"bin{n:06d}.png"),
+                                                              cv2.IMREAD_GRAYSCALE)
+                                                for n in (2, 5, 8)})
+    result = evaluate_sequence(stepped, gt, video_start=1, video_step=3)
+    assert (result.n_frames, result.first_frame, result.last_frame) == (3, 2, 8)
+    assert result.missing == [] and result.counts.total > 0
+    assert result.counts == evaluate_sequence(video, gt, video_start=1, video_step=3).counts
+    assert result.counts == evaluate_sequence(bins, gt, frames=[2, 5, 8]).counts
+    assert not any("no ground truth" in n for n in result.notes)  # the step is no gap
+    # --stop and skip_first as for a video: of frames 2 and 5 (indices 1, 4 < 7), frame 5.
+    assert evaluate_sequence(bins, gt, video_start=1, video_step=3, video_stop=7,
+                             skip_first=True).counts == evaluate_sequence(
+        bins, gt, frames=[5]).counts
     with pytest.raises(InputError, match=r"--step 2.*masks from Python"):
         evaluate_sequence({1: GT2}, gt, video_step=2)
+
+
+def _ten_frames(tmp_path, numbers):
+    """GT frames 1-10 (GT3) and a folder of perfect masks of ``numbers`` only."""
+    gt = write_sequence(tmp_path / "seq", {n: GT3 for n in range(1, 11)})
+    return write_bins(tmp_path / "pred", {n: GT3 for n in numbers}), gt
+
+
+@pytest.mark.parametrize("numbers, options, flags", [
+    (range(4, 8), {}, dict(first_frame=4, last_frame=7)),  # `run --start 3 --stop 7`
+    (range(1, 8), {}, dict(last_frame=7)),  # a run stopped early
+    (range(1, 11, 2), {}, dict(video_step=2)),  # `run --step 2`
+    (range(2, 11, 2), dict(video_step=2), dict(video_start=1, video_step=2)),  # wrong phase
+    (range(3, 9, 2), {}, dict(video_start=2, video_step=2, video_stop=7)),
+])
+def test_missing_masks_of_one_run_name_the_options_that_score_just_them(tmp_path, numbers,
+                                                                         options, flags):
+    pred, gt = _ten_frames(tmp_path, numbers)
+    with pytest.raises(InputError) as caught:
+        evaluate_sequence(pred, gt, **options)
+    message = str(caught.value)
+    named = " ".join(f"--{k.replace('video_', '').replace('_', '-')} {v}"
+                     for k, v in flags.items())
+    assert f"to score just the frames with a mask ({len(numbers)}, " in message
+    assert message.count(named) == 1 and message.endswith(
+        "without one as background") and "--allow-missing" in message
+    # Following it scores exactly those masks: perfect.
+    result = evaluate_sequence(pred, gt, **flags)
+    assert result.missing == [] and result.n_frames == len(numbers)
+    assert result.metrics.f_measure == 1.0
+    # With --allow-missing the result keeps the hint for the warning.
+    assert evaluate_sequence(pred, gt, allow_missing=True, **options).missing_hint.endswith(
+        f"use {named}")
+
+
+def test_missing_masks_with_holes_suggest_only_allow_missing(tmp_path):
+    pred, gt = _ten_frames(tmp_path, [1, 2, 3, 5, 6])
+    with pytest.raises(InputError) as caught:
+        evaluate_sequence(pred, gt)
+    assert str(caught.value).endswith("; use --allow-missing to count them as background")
+    assert "to score just" not in str(caught.value)
+    assert evaluate_sequence(pred, gt, allow_missing=True).missing_hint == ""
+
+
+def test_a_mask_video_longer_than_the_ground_truth_is_scored_with_a_warning(tmp_path):
+    video, _, gt = _video_case(tmp_path, 6)  # 6 frames: as long as the ground truth
+    assert evaluate_sequence(video, gt).warnings == []
+    from bgsub.sinks import open_mask_sink
+    longer = tmp_path / "longer.mkv"
+    with open_mask_sink(longer, width=32, height=24, fps=25.0) as sink:
+        for k in range(9):
+            sink.write(np.zeros((24, 32), np.uint8), k)
+    # The frames with ground truth are scored as before, with a warning saying the counts.
+    result = evaluate_sequence(longer, gt)
+    assert result.n_frames == 5 and result.missing == []
+    (warning,) = result.warnings
+    assert "longer.mkv holds 9 frames, past the end of the ground truth" in warning
+    assert "has 6 ground-truth frames, up to gt000006.png" in warning
+    assert result.to_dict()["warnings"] == [warning]
+    # Also when reading stops earlier (--last-frame): the container's count is confirmed.
+    assert evaluate_sequence(longer, gt, last_frame=3).warnings == [warning]
+    # Read with --step 2, 9 frames are frames 1-17: still past; with --stop 6 they are not.
+    (stepped,) = evaluate_sequence(longer, gt, video_step=2).warnings
+    assert "holds 9 frames (frames 1-17 read with --step 2)" in stepped
+    assert evaluate_sequence(longer, gt, video_stop=6).warnings == []
+
+
+def test_masks_numbered_past_the_ground_truth_are_scored_with_a_warning(tmp_path):
+    pred, gt = _ten_frames(tmp_path, range(1, 15))
+    result = evaluate_sequence(pred, gt)
+    assert result.n_frames == 10 and result.metrics.f_measure == 1.0
+    (warning,) = result.warnings
+    assert warning.startswith("4 of the 14 masks in ") and "(up to bin000014.png; " in warning
+    assert "has 10 ground-truth frames, up to gt000010.png" in warning
+    assert evaluate_sequence(_ten_frames(tmp_path / "b", range(1, 11))[0], gt).warnings == []
 
 
 @pytest.mark.parametrize("options, words", [

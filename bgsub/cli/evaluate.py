@@ -28,13 +28,17 @@ The category of root/CATEGORY/NAME is CATEGORY; of root/NAME, the part of NAME b
 
 Only frames inside the temporal ROI count, and only pixels inside ROI.bmp whose label is 0 or 50
 (negative) or 255 (positive); 85 (outside ROI) and 170 (unknown) are ignored; other labels are an
-error. A frame to evaluate without a prediction is an error unless --allow-missing. Metrics with
-a zero denominator are undefined (n/a, JSON null).
+error. A frame to evaluate without a prediction is an error unless --allow-missing (which counts
+it as all background); when the masks there are one run of frames, the error names the options
+that score just those. Metrics with a zero denominator are undefined (n/a, JSON null). A mask
+video longer than the ground truth, or masks numbered past its last frame, are warned about:
+often masks of another sequence.
 
 A mask video has no frame numbers: its first frame is taken as frame 1 and the next as frame 2.
 For a video that `bgsub run` wrote with --start/--step (and --stop), give eval the same flags
 (same meaning: 0-based input indices); only the frames the run read are then evaluated.
-binNNNNNN.png names carry their frame numbers: these flags are refused for a folder.
+binNNNNNN.png names carry their frame numbers: for a folder, the same flags select the frames
+the run read (--step 2: bin000001.png, bin000003.png, ...) and only those are evaluated.
 Masks smaller or larger than the ground truth by one scale factor (`bgsub run --width/--scale`)
 are scaled to the ground truth's size (nearest neighbour); other sizes are an error."""
 
@@ -43,6 +47,7 @@ examples:
   bgsub eval masks/ data/cameraJitter/traffic --no-roi-bmp     one sequence
   bgsub eval masks.mkv scenes/static_s1 --skip-first           a mask video, frame 1 left out
   bgsub eval masks.mkv scenes/pan_s1 --start 30 --step 2       from `run --start 30 --step 2`
+  bgsub eval masks/ scenes/pan_s1 --step 2                     from `run --step 2 -o masks`
   bgsub eval results/ scenes/ --csv scores.csv                 every sequence under scenes/
   bgsub eval results/ scenes/ --json > scores.json             machine-readable
   bgsub eval cmp_all/ scenes/ --method grbm                    grbm's masks of a compare report
@@ -80,7 +85,7 @@ def register(subparsers: Any) -> None:
                         help="ignore ROI.bmp (e.g. CDnet traffic's, which has the wrong size); "
                              "label 85 still marks outside-ROI pixels")
     frames.add_argument("--skip-first", action="store_true",
-                        help="leave out frame 1, or a mask video's first frame with --start "
+                        help="leave out frame 1, or the masks' first frame with --start "
                              "(a background model has seen nothing before it); no effect when "
                              "the temporal ROI starts later")
     frames.add_argument("--first-frame", type=int, default=None, metavar="N",
@@ -93,14 +98,15 @@ def register(subparsers: Any) -> None:
     # The names, types and meaning of `bgsub run`'s (cli.common.add_source_options), so the
     # flags that wrote a mask video can be repeated here word for word.
     video = parser.add_argument_group(
-        "mask video frames",
-        "the --start/--step/--stop `bgsub run` wrote a mask video with (videos only)")
+        "frames bgsub run read",
+        "the --start/--step/--stop `bgsub run` wrote the masks with: they place a mask video's "
+        "frames, and select a mask folder's")
     video.add_argument("--start", type=int, default=0, metavar="N",
-                       help="the video's first frame is input frame N, 0-based (default: 0)")
+                       help="the masks start at input frame N, 0-based (default: 0)")
     video.add_argument("--stop", type=int, default=None, metavar="N",
-                       help="the video stops before input frame N, 0-based (default: the end)")
+                       help="the masks stop before input frame N, 0-based (default: the end)")
     video.add_argument("--step", type=int, default=1, metavar="N",
-                       help="the video holds every N-th input frame (default: 1)")
+                       help="the masks are of every N-th input frame (default: 1)")
     parser.set_defaults(handler=run)
 
 
@@ -138,10 +144,14 @@ def run(args: argparse.Namespace) -> int:
     else:
         print(format_table(result))
     for seq in result.sequences:
+        for message in seq.warnings:
+            warn(f"{seq.name}: {message}")
         if seq.missing:
             # A video read from the wrong start scores about 0 with most frames "missing".
             hint = ""
-            if Path(seq.pred_path).is_file():
+            if seq.missing_hint:  # a folder whose masks are one run of frames
+                hint = f"; {seq.missing_hint}"
+            elif Path(seq.pred_path).is_file():
                 given = (args.start, args.step, args.stop) != (0, 1, None)
                 hint = ("; check that --start/--step/--stop are those bgsub run wrote the mask "
                         "video with" if given else "; if bgsub run wrote the mask video with "

@@ -783,7 +783,16 @@ def _scoring(job: _Job, info: VideoInfo, *, start: int, stop: Optional[int], ste
         return None, [f"not scored: {message}"], [f"{job.name}: not scored: {message}"]
     resize = (gt.width, gt.height) if (info.width, info.height) != (gt.width, gt.height) \
         else None
-    return _Scoring(gt, numbers, resize, requested), list(gt.notes), []
+    warnings = []
+    input_end = (start + (info.frame_count - 1) * step + 1 if info.frame_count is not None
+                 else None)
+    if stop is None and input_end is not None and input_end > max(gt.frames):
+        # As `bgsub eval` says of masks past the ground truth: often another clip's frames.
+        warnings.append(f"{job.name}: {job.frames} holds frames up to {input_end}, past the "
+                        f"ground truth's last ({max(gt.frames)} in {job.gt}): check that the "
+                        "ground truth belongs to this input; only frames with ground truth "
+                        "are scored")
+    return _Scoring(gt, numbers, resize, requested), list(gt.notes), warnings
 
 
 def _run_job(job: _Job, methods: Sequence[str], params: Mapping[str, Mapping[str, Any]], *,

@@ -260,6 +260,23 @@ def test_video_input_with_separate_ground_truth(sequence: Path, tmp_path: Path) 
     assert from_video.rows[0].counts == from_folder.rows[0].counts
 
 
+def test_an_input_longer_than_its_ground_truth_is_warned_about(sequence: Path,
+                                                               tmp_path: Path) -> None:
+    from bgsub.sinks import VideoSink
+
+    video = tmp_path / "clip.mkv"
+    with VideoSink(video, fps=25.0) as sink:
+        for k in [*range(1, 9), *range(1, 5)]:  # 12 frames against 8 of ground truth
+            sink.write(cv2.imread(str(sequence / "input" / f"in{k:06d}.png")))
+    report = compare_methods(video, methods=["framediff"], gt=sequence)
+    assert report.warnings == [
+        f"clip.mkv: {video} holds frames up to 12, past the ground truth's last (8 in {sequence}): "
+        "check that the ground truth belongs to this input; only frames with ground truth are "
+        "scored"]
+    assert report.rows[0].eval_frames == 8
+    assert compare_methods(video, methods=["framediff"], gt=sequence, stop=8).warnings == []
+
+
 def test_no_ground_truth_gives_speed_only(sequence: Path, tmp_path: Path) -> None:
     report = compare_methods(sequence / "input", methods=METHODS, report_dir=tmp_path / "o",
                              video=False)

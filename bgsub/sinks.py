@@ -14,12 +14,16 @@ Every sink is a context manager that writes under a temporary name in the output
 renames it to the final name when closed. Closing also happens when the ``with`` block ends by
 an exception or Ctrl-C, so a partial video is still a valid, playable file; the sink then says on
 stderr that the output is partial and how many frames it holds. An existing output is refused
-(:class:`bgsub.errors.OutputError`) unless ``overwrite=True``.
+(:class:`bgsub.errors.OutputError`) unless ``overwrite=True``. A full disk stops the run with a
+:class:`bgsub.errors.ProcessingError` naming the output; a video it left unplayable is removed,
+never given its final name.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
+import io
 import math
 import os
 import re
@@ -37,7 +41,7 @@ from typing import Any, Callable, Dict, Iterable, Iterator, List, Optional, Tupl
 
 import numpy as np
 
-from bgsub.errors import OutputError, ProcessingError, given_path
+from bgsub.errors import BgsubError, OutputError, ProcessingError, given_path
 from bgsub.sources import quiet_opencv
 
 import cv2  # noqa: E402,I100 (bgsub.sources sets FFmpeg's log level before cv2 starts FFmpeg)
@@ -68,6 +72,16 @@ def _reason(exc_type: Optional[type]) -> str:
 def is_video_path(path: PathLike) -> bool:
     """True when ``path``'s extension makes :func:`open_mask_sink` write a video."""
     return Path(path).suffix.lower() in MASK_VIDEO_CODECS
+
+
+def _write_error(path: Path, what: str, err: OSError) -> BgsubError:
+    """The error for a failed write of ``what`` to ``path``: a full disk (or quota) is a
+    :class:`ProcessingError`, as for videos; any other cause an :class:`OutputError`."""
+    if err.errno == errno.ENOSPC:
+        return ProcessingError(f"{path}: the disk is full, cannot write {what}")
+    if err.errno == getattr(errno, "EDQUOT", None):
+        return ProcessingError(f"{path}: the disk quota is exceeded, cannot write {what}")
+    return OutputError(f"{path}: cannot write {what} ({err.strerror or err})")
 
 
 def _partial_path(path: Path) -> Path:
@@ -227,6 +241,9 @@ class _VideoFile:
         self.frames_written = 0
         self._temp = _partial_path(path)
         self._writer: Optional[cv2.VideoWriter] = None
+        self._first_failed: Optional[int] = None  # the frame OpenCV said it could not write
+        #: An error has said what became of the file (its sink adds no "partial" line then).
+        self.told = False
 
     def open(self, width: int, height: int) -> None:
         try:
@@ -246,39 +263,95 @@ class _VideoFile:
             writer.release()
             with contextlib.suppress(OSError):
                 self._temp.unlink()
-            raise OutputError(f"{self.path}: {_why_not_writable(self._temp)}OpenCV cannot open "
-                              f"a {self.codec} video writer for {width}x{height} frames here")
+            why = _why_not_writable(self._temp) or (
+                "the disk is full; " if _free_bytes(self._temp.parent) < _DISK_FULL_BYTES else "")
+            raise OutputError(f"{self.path}: {why}OpenCV cannot open a {self.codec} video writer "
+                              f"for {width}x{height} frames here")
         self._writer = writer
         self.size = (width, height)  # of the pictures written; the file's is padded to even
 
     def write(self, image: np.ndarray) -> None:
         assert self._writer is not None, "write() before open()"
-        self._writer.write(_even(image))
-        self.frames_written += 1
+        # A failed write (full disk) would log an OpenCV warning for every frame from then on.
+        with quiet_opencv():
+            ok = self._writer.write(_even(image))
+        if ok is not False:  # (OpenCV 4 returns None: close() finds out)
+            self.frames_written += 1
+            return
+        # OpenCV 5 says a write failed (a full disk): stop here, not write on into nothing.
+        self._first_failed = n = self.frames_written + 1
+        self.close()  # raises when the file holds less than the frames before
+        self.told = True
+        done = (f"the video was finished with the {_frames(n - 1)} before it" if n > 1
+                else "nothing was written")
+        raise ProcessingError(f"{self.path}: the video writer failed at frame {n}; {done}")
+
+    def _problem(self) -> Optional[str]:
+        """Why the finished temporary file may not hold every frame, or None when it reads."""
+        if _free_bytes(self.path.parent) < _DISK_FULL_BYTES:
+            return "the disk is full"
+        if self._first_failed is not None:
+            return f"the video writer failed at frame {self._first_failed}"
+        if _readable_frames(self._temp, 1) == 0:  # (an mp4 whose index was never written)
+            return "the video writer could not finish the file"
+        return None
 
     def close(self) -> None:
-        """Finish the file and move it to its final name (removed if it holds no frame)."""
+        """Finish the file and move it to its final name (removed if it holds no frame).
+
+        When the writer failed (a full disk: OpenCV's writes fail with only a log line), the
+        frames the file holds are counted: a file that does not read is removed, one cut short
+        is kept; either way a :class:`ProcessingError` says which. A file that does not play
+        never gets the final name.
+        """
         if self._writer is None:
             return
-        self._writer.release()
+        with quiet_opencv():
+            self._writer.release()
         self._writer = None
-        if self.frames_written == 0:
+        n = self.frames_written
+        if n == 0:
             with contextlib.suppress(OSError):
                 self._temp.unlink()
             return
+        self.told = True  # (unless it ends well, below)
+        problem = self._problem()
+        held = n if problem is None else _readable_frames(self._temp, n)
+        if held == 0:
+            with contextlib.suppress(OSError):
+                self._temp.unlink()
+            raise ProcessingError(f"{self.path}: {problem}; the unfinished video would not play, "
+                                  f"so it was removed (it was to hold {_frames(n)})")
         try:
             os.replace(self._temp, self.path)
         except OSError as err:
             raise OutputError(f"{self.path}: cannot move the finished video here "
                               f"({err.strerror}); it is at {self._temp}") from None
-        # OpenCV's writer reports no failed write; a disk that filled up is the likely cause.
-        if _free_bytes(self.path.parent) < _DISK_FULL_BYTES:
-            raise ProcessingError(f"{self.path}: the disk is full; the video is probably cut "
-                                  f"short of the {self.frames_written} frames written to it")
+        if held < n:
+            raise ProcessingError(f"{self.path}: {problem}; the video is valid but holds only "
+                                  f"{held} of the {_frames(n)} written to it")
+        self.told = False
 
 
 #: Less free space than this after a video is finished means its last writes failed.
 _DISK_FULL_BYTES = 64 * 1024
+
+
+def _frames(n: int) -> str:
+    return f"{n} frame{'s' * (n != 1)}"
+
+
+def _readable_frames(path: Path, limit: int) -> int:
+    """How many frames of the video at ``path`` decode, counting up to ``limit``."""
+    with quiet_opencv():
+        capture = cv2.VideoCapture(str(path), cv2.CAP_FFMPEG)
+        try:
+            count = 0
+            while count < limit and capture.isOpened() and capture.grab():
+                count += 1
+            return count
+        finally:
+            capture.release()
 
 
 def _free_bytes(folder: Path) -> int:
@@ -336,6 +409,9 @@ class _Sink(ABC):
     """Context-manager behaviour shared by every sink: close, and report a partial output."""
 
     path: Path
+    #: Set by :func:`process` once its frames ran out: this output holds every frame, even if
+    #: the run then stops (another output failing as it is finished).
+    _all_frames = False
 
     @property
     @abstractmethod
@@ -346,21 +422,36 @@ class _Sink(ABC):
     def close(self) -> None:
         """Finish the output (also after an interruption: the partial output stays valid)."""
 
+    def _told(self) -> bool:
+        """Whether an error has already said what became of the output."""
+        return False
+
     def _partial_message(self, reason: str) -> str:
         n = self.frames_written
         if n == 0:
             return f"{self.path}: not written ({reason} before the first frame)"
-        return f"{self.path} is partial ({reason}) but valid: it holds {n} frame{'s' * (n != 1)}"
+        if self._all_frames:
+            run = "the run was interrupted" if reason == "interrupted" else f"the run {reason}"
+            return f"{self.path} is complete: {run} after writing all {_frames(n)}"
+        return f"{self.path} is partial ({reason}) but valid: it holds {_frames(n)}"
 
     def __enter__(self):
         return self
 
     def __exit__(self, exc_type, exc, tb) -> None:
-        self.close()
+        try:
+            self.close()
+        except BgsubError as err:
+            if exc_type is None:
+                raise
+            # The error (or Ctrl-C) that stopped the run is the one the command reports; this
+            # output's own failure to finish gets its line here rather than replacing it.
+            _say(f"error: {err}")
+            return
         interrupted = exc_type is not None and issubclass(exc_type, KeyboardInterrupt)
         # A sink that never got a frame because opening a later output failed stays silent: the
         # error itself is the one line the user needs.
-        if exc_type is not None and (self.frames_written or interrupted):
+        if exc_type is not None and (self.frames_written or interrupted) and not self._told():
             _say(self._partial_message(_reason(exc_type)))
 
 
@@ -445,6 +536,9 @@ class MaskVideoSink(MaskSink):
     def close(self) -> None:
         self._video.close()
 
+    def _told(self) -> bool:
+        return self._video.told
+
 
 class MaskFolderSink(MaskSink):
     """Masks as CDnet-style ``binNNNNNN.png`` files in a folder (created if missing).
@@ -475,13 +569,22 @@ class MaskFolderSink(MaskSink):
         number = (self._count if index is None else int(index)) + 1
         name = f"bin{number:06d}.png"
         temp = self.path / f".bin{number:06d}.partial.png"
-        if not cv2.imwrite(str(temp), mask):
-            raise OutputError(f"{self.path / name}: cannot write the mask")
+        ok, png = cv2.imencode(".png", mask)
+        if not ok:
+            raise OutputError(f"{self.path / name}: OpenCV cannot encode the mask as a PNG")
+        # Python's file writes, not cv2.imwrite: imwrite says True even when nothing reached the
+        # disk (a full disk left empty PNGs), a write or close here raises the system's error.
         try:
-            os.replace(temp, self.path / name)
+            try:
+                with open(temp, "wb") as fh:
+                    fh.write(png.tobytes())
+                os.replace(temp, self.path / name)
+            except BaseException:
+                with contextlib.suppress(OSError):
+                    temp.unlink()
+                raise
         except OSError as err:
-            raise OutputError(f"{self.path / name}: cannot write the mask ({err.strerror})") \
-                from None
+            raise _write_error(self.path / name, "the mask", err) from None
         self._count += 1
         self._last = name
 
@@ -489,7 +592,7 @@ class MaskFolderSink(MaskSink):
         pass  # every PNG is already complete
 
     def _partial_message(self, reason: str) -> str:
-        if self._count == 0:
+        if self._count == 0 or self._all_frames:
             return super()._partial_message(reason)
         s = "s" * (self._count != 1)
         return f"{self.path} is partial ({reason}) but valid: it holds {self._count} mask{s}, " \
@@ -596,6 +699,9 @@ class VideoSink(_Sink):
             self._blanks = 0
         self._video.close()
 
+    def _told(self) -> bool:
+        return self._video.told
+
 
 def render_overlay(frame: np.ndarray, mask: np.ndarray, *,
                    color: Tuple[int, int, int] = (0, 0, 255), alpha: float = 0.45) -> np.ndarray:
@@ -664,14 +770,19 @@ class VisSink(_Sink):
     def close(self) -> None:
         self._video.close()
 
+    def _told(self) -> bool:
+        return self._video._told()
+
 
 class MotionSink(_Sink):
     """The camera motion of every frame, as ``bgsub samples`` writes ``camera_motion.npy``: a
     ``(N, 3, 3) float64`` ``.npy`` file whose entry ``k`` maps pixel coordinates of frame
     ``k - 1`` to frame ``k`` (entry 0 the identity), NaN where the engine measured none.
 
-    Rows go to a hidden file as they come (memory stays flat), which becomes the ``.npy`` when
-    the sink is closed, also after an interruption (the frames so far).
+    Rows go to a hidden ``.npy`` file as they come (memory stays flat); closing the sink puts
+    their count in its header and gives it the final name, also after an interruption or a full
+    disk (the frames so far). Plain file writes, no memory map: a full disk is an error to
+    report, where writing to a memory map kills the process (SIGBUS).
 
     Parameters
     ----------
@@ -683,12 +794,21 @@ class MotionSink(_Sink):
 
     def __init__(self, path: PathLike, *, overwrite: bool = False) -> None:
         self.path = check_motion_output(path, overwrite=overwrite)
-        self._raw_path = _partial_path(self.path).with_suffix(".raw")
-        try:
-            self._raw: Optional[Any] = open(self._raw_path, "wb")
-        except OSError as err:
-            raise OutputError(f"cannot write {self._raw_path}: {err.strerror}") from None
+        self._temp = _partial_path(self.path)
         self._count = 0
+        try:
+            # Unbuffered: each row is on disk (or refused) when write() returns.
+            self._file: Optional[Any] = open(self._temp, "wb", buffering=0)
+        except OSError as err:
+            raise _write_error(self.path, "the camera motion", err) from None
+        try:
+            _write_all(self._file, _npy_header(0))
+        except OSError as err:
+            self._file.close()
+            self._file = None
+            with contextlib.suppress(OSError):
+                self._temp.unlink()
+            raise _write_error(self.path, "the camera motion", err) from None
 
     @property
     def frames_written(self) -> int:
@@ -697,30 +817,55 @@ class MotionSink(_Sink):
     def write(self, matrix: Optional[np.ndarray]) -> None:
         """Add the motion of the next frame: ``(3, 3)``, or None (not measured: NaN)."""
         row = np.full((3, 3), np.nan) if matrix is None else np.asarray(matrix, np.float64)
-        self._raw.write(np.ascontiguousarray(row.reshape(3, 3)).tobytes())
+        try:
+            _write_all(self._file, np.ascontiguousarray(row.reshape(3, 3), "<f8").tobytes())
+        except OSError as err:  # close() drops the part of the row that got in
+            raise _write_error(self.path, "the camera motion", err) from None
         self._count += 1
 
     def close(self) -> None:
-        if self._raw is None:
+        if self._file is None:
             return
-        self._raw.close()
-        self._raw = None
+        fh, self._file = self._file, None
         try:
+            with fh:
+                if self._count:
+                    # The row count goes in the header, in place (it keeps its size, so a full
+                    # disk does not refuse it); truncating drops what a failed write() left.
+                    header = _npy_header(self._count)
+                    fh.truncate(len(header) + self._count * _MOTION_ROW_BYTES)
+                    fh.seek(0)
+                    _write_all(fh, header)
             if self._count:
-                rows = np.memmap(self._raw_path, dtype=np.float64, mode="r",
-                                 shape=(self._count, 3, 3))
-                tmp = self.path.with_name(f".{self.path.name}.{uuid.uuid4().hex[:12]}.part")
-                out = np.lib.format.open_memmap(tmp, mode="w+", dtype=np.float64,
-                                                shape=rows.shape)
-                out[:] = rows
-                out.flush()
-                del out, rows
-                os.replace(tmp, self.path)
+                os.replace(self._temp, self.path)
         except OSError as err:
-            raise OutputError(f"cannot write {self.path}: {err.strerror or err}") from None
+            raise _write_error(self.path, "the camera motion", err) from None
         finally:
             with contextlib.suppress(OSError):
-                os.unlink(self._raw_path)
+                self._temp.unlink()  # (gone once renamed)
+
+
+#: Bytes of one frame's motion, a (3, 3) float64 matrix.
+_MOTION_ROW_BYTES = 9 * 8
+
+
+def _write_all(fh: Any, data: bytes) -> None:
+    """``data`` to the unbuffered file ``fh``, which may take part of it per call."""
+    view = memoryview(data)
+    while view:
+        written = fh.write(view)
+        if not written:  # (a file system that takes nothing without saying why)
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        view = view[written:]
+
+
+def _npy_header(rows: int) -> bytes:
+    """The ``.npy`` header of ``rows`` (3, 3) little-endian float64 matrices: 128 bytes for any
+    count (numpy pads a version 1.0 header to a multiple of 64), so it is rewritten in place."""
+    buffer = io.BytesIO()
+    np.lib.format.write_array_header_1_0(
+        buffer, {"descr": "<f8", "fortran_order": False, "shape": (rows, 3, 3)})
+    return buffer.getvalue()
 
 
 def check_motion_output(path: PathLike, *, overwrite: bool = False) -> Path:
@@ -840,6 +985,9 @@ def process(frames: Iterable[Tuple[int, np.ndarray]], engine, masks: MaskSink, *
         raise TypeError(f"{type(engine).__name__} has no debug_image() for a flow visualisation")
     if motion is not None and not hasattr(engine, "last_motion"):
         raise TypeError(f"{type(engine).__name__} has no last_motion for a motion file")
+    outputs = [sink for sink in (masks, vis, flow_vis, motion) if isinstance(sink, _Sink)]
+    for sink in outputs:
+        sink._all_frames = False
     stats = RunStats(has_status=hasattr(engine, "last_status"))
     started = time.perf_counter()
     for index, frame in frames:
@@ -872,4 +1020,6 @@ def process(frames: Iterable[Tuple[int, np.ndarray]], engine, masks: MaskSink, *
         if on_frame is not None:
             on_frame(index, mask)
     stats.seconds = time.perf_counter() - started
+    for sink in outputs:  # so a failure while the outputs are finished does not call them partial
+        sink._all_frames = True
     return stats

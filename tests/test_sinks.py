@@ -311,13 +311,6 @@ def test_video_sink_keeps_the_last_column_and_row_of_an_odd_size(tmp_path):
     np.testing.assert_array_equal(frame[:H + 1, :W + 1], picture)  # FFV1: exact
 
 
-def test_a_full_disk_is_reported_when_the_video_is_finished(tmp_path, monkeypatch):
-    monkeypatch.setattr(sinks, "_free_bytes", lambda folder: 0)
-    with pytest.raises(ProcessingError, match="disk is full"):
-        with open_mask_sink(tmp_path / "m.mkv", width=W, height=H, fps=20) as sink:
-            sink.write(_masks(1)[0])
-
-
 def test_video_sink_blanks_keep_the_video_in_step(tmp_path):
     picture = np.full((H, W, 3), 180, np.uint8)
     with VideoSink(tmp_path / "p.mkv", fps=10) as sink:
@@ -455,6 +448,25 @@ def test_ctrl_c_while_a_frame_is_written_reaches_every_sink_first(tmp_path, monk
             process(frames, _Drawing(), masks, vis=vis, flow_vis=flow)
     assert [len(_read_video(tmp_path / name)) for name in ("m.mkv", "v.mkv", "f.mkv")] == [3] * 3
     assert signal.getsignal(signal.SIGINT) is before
+
+
+@pytest.mark.parametrize("stop, words", [
+    (ProcessingError("another output failed"), "the run stopped by an error"),
+    (KeyboardInterrupt(), "the run was interrupted"),
+])
+def test_an_output_that_got_every_frame_is_called_complete_not_partial(tmp_path, capsys, stop,
+                                                                       words):
+    frames = [(k, np.full((H, W, 3), 60 * k, np.uint8)) for k in range(4)]
+    with pytest.raises(type(stop)):
+        with open_mask_sink(tmp_path / "m.mkv", width=W, height=H, fps=10) as masks, \
+                open_mask_sink(tmp_path / "out", width=W, height=H, fps=10) as folder:
+            process(frames, _Threshold(), masks)
+            process(frames, _Threshold(), folder)
+            raise stop  # as another output failing as it is finished does
+    err = capsys.readouterr().err
+    assert err == (f"bgsub: {tmp_path / 'out'} is complete: {words} after writing all 4 "
+                   f"frames\nbgsub: {tmp_path / 'm.mkv'} is complete: {words} after writing "
+                   "all 4 frames\n")
 
 
 @pytest.mark.parametrize("check", [sinks.check_file_output, sinks.check_video_output,

@@ -12,8 +12,6 @@ import errno
 import os
 import re
 import signal
-from pathlib import Path
-from typing import List
 
 import cv2
 import numpy as np
@@ -23,25 +21,9 @@ from bgsub import sinks
 from bgsub.errors import OutputError, ProcessingError
 from bgsub.sinks import MotionSink, VideoSink, VisSink, open_mask_sink, process
 
-W, H = 48, 32
+from test_sinks import H, W, _masks, _read_video
+
 _REAL_WRITER = cv2.VideoWriter
-
-
-def _masks(n: int, seed: int = 0) -> List[np.ndarray]:
-    rng = np.random.default_rng(seed)
-    return [np.where(rng.random((H, W)) < 0.3, 255, 0).astype(np.uint8) for _ in range(n)]
-
-
-def _read_video(path: Path) -> List[np.ndarray]:
-    capture = cv2.VideoCapture(str(path), cv2.CAP_FFMPEG)
-    frames = []
-    while True:
-        ok, frame = capture.read()
-        if not ok:
-            break
-        frames.append(frame)
-    capture.release()
-    return frames
 
 
 class _Disk:

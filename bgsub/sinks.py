@@ -204,8 +204,8 @@ def check_mask_output(path: PathLike, *, overwrite: bool = False) -> Path:
         # surprise. A dotted folder name is still fine when it exists or ends in a slash.
         raise OutputError(
             f"{output}: cannot write masks to a {suffix} file; give a video ending in .mkv or "
-            ".avi (lossless) or .mp4 or .mov (lossy), or a name without an extension for a "
-            "folder of binNNNNNN.png masks"
+            ".avi (lossless) or .mp4 or .mov (lossy), or a folder for binNNNNNN.png masks: a "
+            f"name without an extension, or one ending in a slash ({output.name}/)"
         )
     if output.exists() and not output.is_dir():
         raise OutputError(f"{output}: is a file, not a folder for masks")

@@ -212,6 +212,7 @@ def test_unknown_extension_is_refused_not_made_a_folder(tmp_path, name):
         open_mask_sink(tmp_path / name, width=W, height=H, fps=20)
     message = str(refused.value)
     assert all(ext in message for ext in (".mkv", ".avi", ".mp4")) and "without an extension" in message
+    assert f"ending in a slash ({name}/)" in message  # how to keep a dotted folder name
     assert os.listdir(tmp_path) == []
 
 

@@ -164,6 +164,10 @@ class Engine(ABC):
         """The current background estimate as an image like the input, or ``None``."""
         return None
 
+    def close(self) -> None:
+        """Release what the engine holds beyond its model (a worker thread), so that
+        ``contextlib.closing(engine)`` works; the engine stays usable."""
+
     # OpenCV's camelCase names, so code written against cv2 runs as it is.
     def getBackgroundImage(self, backgroundImage: Optional[np.ndarray] = None  # noqa: N802,N803
                            ) -> Optional[np.ndarray]:

@@ -309,7 +309,7 @@ class MovingCameraEngine(Engine):
         self.violation_noise = float(violation_noise)
         self.threshold = float(threshold)
         self.min_area = int(min_area)
-        self.close = int(close)
+        self.close_size = int(close)  # (not `close`: that is the method)
         self.fill_holes = int(fill_holes)
         self.min_contrast = float(min_contrast)
         self.scene_cut = float(scene_cut)
@@ -479,7 +479,7 @@ class MovingCameraEngine(Engine):
         self._last_matrix = matrix
         violation = violation[0]
         mask = fuse_masks(score, violation, flow_boost=self.flow_boost, flow_damp=self.flow_damp,
-                          threshold=self.threshold, min_area=self.min_area, close=self.close,
+                          threshold=self.threshold, min_area=self.min_area, close=self.close_size,
                           fill_holes=self.fill_holes)
 
         # The update is deferred to the next frame (its other thread).
@@ -589,6 +589,13 @@ class MovingCameraEngine(Engine):
         error = future.exception()
         if error is not None:
             raise error
+
+    def close(self) -> None:
+        """Stop the engine's second thread (``overlap=1``) now rather than when the engine is
+        garbage-collected; a later :meth:`apply` starts it again."""
+        worker, self._worker = self._worker, None
+        if worker is not None:
+            worker.shutdown(wait=True)
 
     def _restart(self, work: np.ndarray, gray: np.ndarray, cur: Any = None) -> None:
         self._pending = None

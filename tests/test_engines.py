@@ -210,3 +210,22 @@ def test_frames_of_other_kinds_are_refused_with_what_to_do(image, words):
     for name in ENGINES:
         with pytest.raises(InputError, match=words):
             create_engine(name).apply(image)
+
+
+@pytest.mark.parametrize("name", ENGINES)
+def test_closing_an_engine_stops_its_thread_and_leaves_it_usable(name):
+    import contextlib
+    import threading
+
+    frames = _frames()
+    reference = create_engine(name)
+    expected = [reference.apply(frame) for frame in frames]
+    before = set(threading.enumerate())
+    with contextlib.closing(create_engine(name)) as engine:
+        for frame, mask in zip(frames[:2], expected):
+            np.testing.assert_array_equal(engine.apply(frame), mask)
+        started = set(threading.enumerate()) - before  # the engine's own (grbm, compensated)
+    assert not [t for t in started if t.is_alive()]
+    for frame, mask in zip(frames[2:], expected[2:]):  # closed, not broken
+        np.testing.assert_array_equal(engine.apply(frame), mask)
+    engine.close()

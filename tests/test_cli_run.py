@@ -236,7 +236,7 @@ def test_output_with_an_unknown_extension_is_refused_not_made_a_folder(tmp_path,
                                                                        bgsub_error):
     before = _FrameDiff.calls
     err = bgsub_error(["run", clip, "-o", tmp_path / "masks.txt", "-m", "_test_diff"])
-    assert ".mkv" in err and "folder of binNNNNNN.png" in err
+    assert ".mkv" in err and "a folder for binNNNNNN.png masks" in err
     assert _FrameDiff.calls == before and not (tmp_path / "masks.txt").exists()
 
 

@@ -11,7 +11,8 @@ isolates the motion estimator:
 3. RANSAC fits the camera motion (:func:`bgsub.global_motion.fit_global_motion`); when the fit
    is refused the previous frame's motion is reused and the frame is flagged in ``last_status``
    (a fit whose inliers cover only a small region is an object's: the camera is taken as still,
-   :func:`spans_frame`); a fit that moves no corner by ``still_below`` px is taken as no motion;
+   :func:`spans_frame`); motion that moves no corner by ``still_below`` px is held back until
+   the frames' total does;
    with ``learning_rate=0`` the fit is registered to the frozen model, so errors do not add up;
 4. the compensated background model is warped by it, compared with the frame, fused with the
    flow-violation map and cleaned (:mod:`bgsub.foreground`), then updated.
@@ -25,7 +26,6 @@ from __future__ import annotations
 import concurrent.futures
 import contextlib
 import dataclasses
-import warnings
 from dataclasses import dataclass
 from abc import abstractmethod
 from typing import Any, Callable, Iterator, Optional
@@ -36,8 +36,7 @@ import numpy as np
 from bgsub.engines import (LEARNING_RATE, Engine, Param, check_fgmask, check_frame,
                            check_learning_rate, opencv_keywords, register_engine)
 from bgsub.errors import InputError
-from bgsub.flowfield import (FramePyramid, MotionRangeWarning, dense_from_patches, estimate_flow,
-                             prepare_first_frame)
+from bgsub.flowfield import FramePyramid, dense_from_patches, estimate_flow, prepare_first_frame
 from bgsub.flowio import draw_flow_arrows, flow_to_color
 from bgsub.foreground import (
     BackgroundParams,
@@ -47,7 +46,7 @@ from bgsub.foreground import (
     still_in_image_map,
 )
 from bgsub.global_motion import (MODELS, GlobalMotion, apply_homography, corner_distances,
-                                 fit_global_motion, is_identity)
+                                 fit_global_motion)
 
 __all__ = ["MovingCameraEngine", "GrbmEngine", "CompensatedEngine", "MotionResult",
            "GRBM_TUNED", "limited_threads", "spans_frame"]
@@ -199,6 +198,14 @@ def spans_frame(result: MotionResult, shape: tuple, min_extent: float) -> bool:
     return max(span_x, span_y) >= min_extent
 
 
+def _shift_of(matrix: np.ndarray, shape: tuple) -> np.ndarray:
+    """The translation (3, 3) that moves the centre of an ``(H, W)`` frame as ``matrix`` does."""
+    h, w = shape[:2]
+    centre = np.array([[(w - 1) / 2.0, (h - 1) / 2.0]])
+    dx, dy = (apply_homography(matrix, centre) - centre)[0]
+    return np.array([[1.0, 0.0, dx], [0.0, 1.0, dy], [0.0, 0.0, 1.0]])
+
+
 def _largest_corner_shift(matrix: np.ndarray, shape: tuple) -> float:
     """How far (px) ``matrix`` moves the farthest-moved corner of an ``(H, W)`` frame."""
     h, w = shape[:2]
@@ -244,8 +251,9 @@ class MovingCameraEngine(Engine):
         The background model's rate when :meth:`apply` is given none (negative: its own;
         see :meth:`CompensatedBackground.update`).
     still_below : float
-        A fitted motion that moves no frame corner by more than this (working px) is applied
-        as the identity (a still camera's reading noise; 0 = never).
+        Motion that moves no frame corner by more than this (working px) is held back and
+        added to the next frame's, so the model is warped only once the total reaches it (a
+        still camera's reading noise; 0 = every frame).
     min_extent : float
         A fitted motion whose inliers span less than this fraction of the frame's width and of
         its height is refused as an object's (:func:`spans_frame`), and the camera is taken as
@@ -337,6 +345,7 @@ class MovingCameraEngine(Engine):
         self._last_mask: Optional[np.ndarray] = None
         self._in_shape: Optional[tuple] = None  # the input frames' shape, (H, W) or (H, W, 3)
         self._window: Optional[np.ndarray] = None  # Hanning window of _registered_to_model
+        self._unapplied = np.eye(3)  # motion held back by still_below (see _to_apply)
 
     # ------------------------------------------------------------------ sizes
 
@@ -454,12 +463,7 @@ class MovingCameraEngine(Engine):
             matrix = self._prev_motion if self._prev_motion is not None else np.eye(3)
             if small:
                 matrix = np.eye(3)  # see spans_frame
-        elif self.still_below > 0 and _largest_corner_shift(matrix, gray.shape) < self.still_below:
-            # A still camera's readings scatter by hundredths of a pixel; warping the model by
-            # them resamples (blurs) it every frame and, with learning_rate=0, drifts it.
-            matrix = np.eye(3)
-        if rate == 0.0 and result.motion.ok and not is_identity(matrix):
-            matrix = self._registered_to_model(matrix, gray)
+        applied = self._to_apply(matrix, gray, register=rate == 0.0 and result.motion.ok)
 
         # 4. The background compared in this frame's coordinates, while the other thread
         # makes the violation map.
@@ -470,13 +474,13 @@ class MovingCameraEngine(Engine):
         noise = 0.0 if small else self.violation_noise
         with self._alongside(lambda: violation.append(
                 self._violation_map(result, matrix, prev_gray, gray, noise))):
-            self.bg.warp(matrix, sharp=rate == 0.0)
+            self.bg.warp(applied, sharp=rate == 0.0)
             score = self.bg.score(work)
         if self._is_scene_cut(score, result):
             self._restart(work, gray, cur)
             self.last_status = "fallback: scene cut"
             return empty
-        self._last_matrix = matrix
+        self._last_matrix = applied
         violation = violation[0]
         mask = fuse_masks(score, violation, flow_boost=self.flow_boost, flow_damp=self.flow_damp,
                           threshold=self.threshold, min_area=self.min_area, close=self.close_size,
@@ -496,6 +500,32 @@ class MovingCameraEngine(Engine):
             self._prev_motion = result.motion.matrix
         self.last_status = status
         return mask
+
+    def _to_apply(self, matrix: np.ndarray, gray: np.ndarray, *, register: bool) -> np.ndarray:
+        """The motion to warp the background model by, given this frame's ``matrix`` (3, 3):
+        it with what earlier frames left unapplied, registered to the model when ``register``
+        (a frozen model), or the identity while that total moves no frame corner by
+        ``still_below`` px (kept for the next frame).
+
+        A still camera's readings scatter by hundredths of a pixel: warping by each resamples
+        (blurs) the model every frame. Held back and added up instead, a slow pan (0.2 px per
+        frame at the working size) still moves the model, in steps.
+        """
+        total = matrix @ self._unapplied
+        if register:
+            if self._below_still(total, gray.shape):
+                # A frozen model must not collect the fit's sub-pixel rotation and zoom noise
+                # (the registration below corrects shifts only): a small motion is a shift.
+                total = _shift_of(total, gray.shape)
+            total = self._registered_to_model(total, gray)
+        if self._below_still(total, gray.shape):
+            self._unapplied = total
+            return np.eye(3)
+        self._unapplied = np.eye(3)
+        return total
+
+    def _below_still(self, matrix: np.ndarray, shape: tuple) -> bool:
+        return self.still_below > 0 and _largest_corner_shift(matrix, shape) < self.still_below
 
     def _registered_to_model(self, matrix: np.ndarray, gray: np.ndarray) -> np.ndarray:
         """``matrix`` (3, 3) followed by the shift (at most ``_MAX_REGISTRATION`` px) that best
@@ -604,16 +634,19 @@ class MovingCameraEngine(Engine):
         self._prev = cur if cur is not None else self._frame_data(gray)
         self._prev_gray = gray
         self._prev_motion = None
+        self._unapplied = np.eye(3)
 
     @property
     def last_motion(self) -> Optional[np.ndarray]:
         """The camera motion from the previous frame to the last one, as the engine applied it
         to its background model: ``(3, 3) float64`` in the input's pixel coordinates (as
-        :mod:`bgsub.global_motion`). The identity on the first frame and where the fit moved
-        no corner by ``still_below`` px; on a frame whose fit was refused, the previous frame's
-        motion, or the identity when it was seen on only a small region (``last_status`` says
-        which); with ``learning_rate=0``, the fit registered to the model. None where the
-        engine measured none (a blank frame, a scene cut) and before the first frame."""
+        :mod:`bgsub.global_motion`). Normally the fit; on a frame whose fit was refused, the
+        previous frame's motion, or the identity when it was seen on only a small region
+        (``last_status`` says which); with ``learning_rate=0``, registered to the model. The
+        identity on the first frame and while the motion since the last warp moves no corner
+        by ``still_below`` px: that motion is then applied with a later frame's, so the
+        product of the matrices is the camera's path. None where the engine measured none (a
+        blank frame, a scene cut) and before the first frame."""
         matrix = self._last_matrix
         if matrix is None or self._in_shape is None:
             return None
@@ -855,15 +888,13 @@ class GrbmEngine(MovingCameraEngine):
             # cover that; a camera that changes course fails the support test and is retried
             # with the full pyramid.
             levels = self.prior_levels if self.prior_levels > 0 else None
-        with warnings.catch_warnings():
-            # max_motion only plans the pyramid here: beyond its reach the engine reads from
-            # the previous frame's motion, and a poorly supported start retries coarser.
-            warnings.simplefilter("ignore", MotionRangeWarning)
-            flow = estimate_flow(prev, cur, prior=prior, search=self.search,
-                                 coarse_iterations=self.coarse_iterations,
-                                 search_below=self.search_below, start_model=self.start_model,
-                                 converged=self.converged,
-                                 **self._flow_settings(levels, finest, stride))
+        # (warn_range: max_motion only plans the pyramid here; beyond its reach the engine
+        # reads from the previous frame's motion, and a poorly supported start retries coarser.)
+        flow = estimate_flow(prev, cur, prior=prior, search=self.search,
+                             coarse_iterations=self.coarse_iterations,
+                             search_below=self.search_below, start_model=self.start_model,
+                             converged=self.converged, warn_range=False,
+                             **self._flow_settings(levels, finest, stride))
         motion = self._fit(flow.centres, flow.disp, flow.weights, cur.shape)
         used = max(int(np.count_nonzero(flow.weights > 0)), 1)
         return flow, motion, (motion.n_inliers / used if motion.ok else 0.0)
@@ -971,10 +1002,10 @@ _COMMON = {
                               "the frame's width or height; one seen only on a smaller region "
                               "(a textured object over a blank background) is taken as the "
                               "object's, and the camera as still (0 = off)", low=0, high=1),
-    "still_below": Param(0.25, "a fitted camera motion that moves no frame corner by more than "
-                              "this (working px) is taken as none: warping the model by a still "
-                              "camera's sub-pixel reading noise blurs it, and a frozen model "
-                              "(learning_rate=0) drifts (0 = off)", low=0),
+    "still_below": Param(0.25, "camera motion that moves no frame corner by more than this "
+                              "(working px) is held back and added to the next frame's: a still "
+                              "camera's sub-pixel reading noise would resample (blur) the model "
+                              "every frame (0 = warp every frame)", low=0),
     "still_cue": Param(1.0, "weight of the evidence that a pixel stays put in the image while "
                             "the camera moves (an object the camera follows; 0 = off)",
                        low=0, high=1),

@@ -391,6 +391,7 @@ def estimate_flow(
     start_tolerance: float = 0.0,
     converged: float = 0.0,
     start_model: str = "translation",
+    warn_range: bool = True,
 ) -> FlowEstimate:
     """Patch displacements between two frames, coarse to fine.
 
@@ -411,7 +412,9 @@ def estimate_flow(
         :func:`auto_levels`): a 320x240 frame allows 3 levels, which read up to about 12 px per
         axis with a model of range 4 (24 px with ``search=1``). Larger motions are misread
         (patches still valid, ``coarse_status`` still ``"ok"``), so a ``max_motion`` beyond that
-        reach gives a :class:`MotionRangeWarning` (with automatic ``levels`` only).
+        reach gives a :class:`MotionRangeWarning` (with automatic ``levels`` only, and
+        ``warn_range``: callers that read beyond from a prior or say it themselves pass False;
+        filtering the warning instead would change the process-wide warning state).
     max_disp : int, optional
         The model's displacement range; default :func:`model_range`.
     coarse_stride : int, optional
@@ -518,7 +521,7 @@ def estimate_flow(
         finest=finest, refine_stride=refine_stride, start_tolerance=start_tolerance)
     pyr2 = fp2.levels(plan.levels, p)
     reach = motion_reach(plan.levels, model_disp=rng, search=search)
-    if levels is None and max_motion > reach:
+    if warn_range and levels is None and max_motion > reach:
         n, step = plan.levels, motion_reach(plan.levels, model_disp=rng, search=0)
         hint = (f"pass search={search + 1} or more (each adds {step} px) or a prior near the "
                 "motion" if n > 1 else "give larger frames")

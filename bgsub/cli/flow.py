@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import warnings
 from pathlib import Path
 from typing import Any, List, Optional, Tuple
 
@@ -188,13 +187,12 @@ def _search_for(shape: Tuple[int, int], model: Any, args: argparse.Namespace) ->
 
 def _estimate(frame1: np.ndarray, frame2: np.ndarray, model: Any, args: argparse.Namespace,
               prior: Optional[np.ndarray] = None):
-    from bgsub.flowfield import MotionRangeWarning, estimate_flow
+    from bgsub.flowfield import estimate_flow
 
-    search = _search_for(frame1.shape[:2], model, args)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", MotionRangeWarning)  # _search_for said it in CLI words
-        return estimate_flow(frame1, frame2, model=model, stride=args.stride, levels=args.levels,
-                             max_motion=args.max_motion, prior=prior, search=search, dense=True)
+    search = _search_for(frame1.shape[:2], model, args)  # (says it in CLI words: warn_range off)
+    return estimate_flow(frame1, frame2, model=model, stride=args.stride, levels=args.levels,
+                         max_motion=args.max_motion, prior=prior, search=search, dense=True,
+                         warn_range=False)
 
 
 def _check_pair_outputs(args: argparse.Namespace) -> None:

@@ -28,6 +28,7 @@ import math
 import numbers
 import os
 import re
+import threading
 import weakref
 from dataclasses import dataclass
 from pathlib import Path
@@ -94,14 +95,30 @@ class VideoInfo:
 
 @contextlib.contextmanager
 def quiet_opencv() -> Iterator[None]:
-    """Silence OpenCV's own log lines (``[ WARN:0@0.01] ...``) inside the ``with`` block."""
+    """Silence OpenCV's own log lines (``[ WARN:0@0.01] ...``) inside the ``with`` block.
+
+    OpenCV's log level is process-wide: blocks that overlap (sinks written from several
+    threads) share one silence, and the level in force before the first is restored when the
+    last ends (saved and restored per block, the first to end would keep OpenCV silent)."""
+    global _quiet_depth, _loud_level
     logging = cv2.utils.logging
-    previous = logging.getLogLevel()
-    logging.setLogLevel(logging.LOG_LEVEL_SILENT)
+    with _quiet_lock:
+        if _quiet_depth == 0:
+            _loud_level = logging.getLogLevel()
+            logging.setLogLevel(logging.LOG_LEVEL_SILENT)
+        _quiet_depth += 1
     try:
         yield
     finally:
-        logging.setLogLevel(previous)
+        with _quiet_lock:
+            _quiet_depth -= 1
+            if _quiet_depth == 0:
+                logging.setLogLevel(_loud_level)
+
+
+_quiet_lock = threading.Lock()
+_quiet_depth = 0  # quiet_opencv blocks running now
+_loud_level = 0  # OpenCV's log level before the first of them
 
 
 def natural_key(text: str) -> list:

@@ -392,3 +392,21 @@ def test_an_impossible_frame_rate_is_refused(tmp_path, fps):
     video = _write_video(tmp_path / "clip.mkv", _frames(3))
     with pytest.raises(InputError, match="frame rate must be a number of frames per second"):
         open_source(video, fps=fps)
+
+
+def test_overlapping_quiet_blocks_restore_opencvs_log_level_once_all_end():
+    # Blocks from two threads (sinks written in parallel) end in the other order than they
+    # began: saved and restored per block, OpenCV stayed silent for good.
+    import cv2
+
+    from bgsub.sources import quiet_opencv
+
+    logging = cv2.utils.logging
+    before = logging.getLogLevel()
+    first, second = quiet_opencv(), quiet_opencv()
+    first.__enter__()
+    second.__enter__()
+    first.__exit__(None, None, None)
+    assert logging.getLogLevel() == logging.LOG_LEVEL_SILENT  # the other block still runs
+    second.__exit__(None, None, None)
+    assert logging.getLogLevel() == before

@@ -25,6 +25,7 @@ import contextlib
 import errno
 import io
 import math
+import numbers
 import os
 import re
 import shutil
@@ -385,8 +386,9 @@ _SHAPES = {2: "(H, W)", 3: "(H, W, 3)"}
 def _check_size(path: Path, width: Any, height: Any, what: str) -> None:
     """:class:`OutputError` unless ``width`` and ``height`` are whole numbers of at least 1."""
     for value in (width, height):
-        if not (isinstance(value, (int, np.integer)) and not isinstance(value, bool)
-                and value >= 1):
+        # (A whole float is fine: cv2.VideoCapture.get(CAP_PROP_FRAME_WIDTH) gives 320.0.)
+        if not (isinstance(value, numbers.Real) and not isinstance(value, bool)
+                and math.isfinite(value) and float(value).is_integer() and value >= 1):
             raise OutputError(f"{path}: cannot write {what} of {width}x{height} pixels; "
                               "width and height must be whole numbers of at least 1")
 

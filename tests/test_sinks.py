@@ -257,6 +257,14 @@ def test_a_mask_size_below_one_pixel_is_refused_before_writing(tmp_path, name, w
     assert not list(tmp_path.iterdir())
 
 
+@pytest.mark.parametrize("name", ["out", "out.mkv"])
+def test_a_whole_float_size_is_taken(tmp_path, name):
+    # What cv2.VideoCapture.get(cv2.CAP_PROP_FRAME_WIDTH) gives: 320.0.
+    with open_mask_sink(tmp_path / name, width=float(W), height=float(H), fps=20) as sink:
+        sink.write(_masks(1)[0])
+    assert sink.frames_written == 1
+
+
 def test_a_bool_mask_is_written_as_0_and_255(tmp_path):
     mask = _masks(1)[0]
     with open_mask_sink(tmp_path / "out", width=W, height=H, fps=20) as sink:

@@ -652,7 +652,9 @@ class _FolderReader(_PredictionReader):
         if step is None:
             return ""
         first, last = inside[0], inside[-1]
-        if step == 1:
+        if step == 1 and not skip_first:
+            # (With --skip-first, the run's own range below: --first-frame would keep the masks'
+            # first frame, the one a model met without history.)
             chosen = [n for n in selected if first <= n <= last]
             flags = " ".join(f for f in (f"--first-frame {first}" if first > lo else "",
                                          f"--last-frame {last}" if last < hi else "") if f)

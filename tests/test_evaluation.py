@@ -107,7 +107,7 @@ def test_without_temporal_roi_every_gt_frame_counts(tmp_path):
 
 
 def test_sparse_ground_truth_is_scored_where_it_exists_and_said_so(tmp_path):
-    zeros, ones = np.zeros((4, 5), np.uint8), np.full((4, 5), 255, np.uint8)
+    ones = np.full((4, 5), 255, np.uint8)
     gt = write_sequence(tmp_path / "seq", {1: GT2, 3: GT2, 4: GT2})  # no label for frame 2
     pred = write_bins(tmp_path / "pred", {1: PRED2, 2: ones, 3: PRED2, 4: PRED2})
     result = evaluate_sequence(pred, gt)
@@ -360,6 +360,17 @@ def test_missing_masks_of_one_run_name_the_options_that_score_just_them(tmp_path
     # With --allow-missing the result keeps the hint for the warning.
     assert evaluate_sequence(pred, gt, allow_missing=True, **options).missing_hint.endswith(
         f"use {named}")
+
+
+def test_with_skip_first_the_hint_leaves_out_the_masks_first_frame(tmp_path):
+    # Masks of `run --start 3 --stop 7` (frames 4-7) scored with --skip-first: the frame to
+    # leave out is 4, the first the run's model met, which --first-frame 4 would keep.
+    pred, gt = _ten_frames(tmp_path, range(4, 8))
+    with pytest.raises(InputError) as caught:
+        evaluate_sequence(pred, gt, skip_first=True)
+    assert "use --start 3 --stop 7" in str(caught.value)
+    result = evaluate_sequence(pred, gt, skip_first=True, video_start=3, video_stop=7)
+    assert result.first_frame == 5 and result.n_frames == 3
 
 
 def test_missing_masks_with_holes_suggest_only_allow_missing(tmp_path):

@@ -468,11 +468,11 @@ _FILE_SUFFIXES = {".txt", ".csv", ".json", ".md", ".html", ".htm", ".pdf", ".png
                   ".mkv", ".avi", ".mp4", ".mov", ".webm"}
 
 
-def _check_report_dir(report_dir: PathLike, overwrite: bool) -> bool:
+def _check_report_dir(report_dir: PathLike, overwrite: bool) -> Optional[Path]:
     """Create ``report_dir`` or check that it may be filled; raise :class:`OutputError` when it
     holds results (without ``overwrite``), is a file, looks like a file name, or cannot be
     made. ``report_dir`` as given: a trailing slash marks a dotted name as a folder. Returns
-    whether it was created here."""
+    the outermost folder created here (``report_dir`` or a missing parent), or None."""
     given_path(report_dir, what="report folder", hint="a folder name such as cmp/",
                error=OutputError)
     if Path(report_dir).suffix.lower() in _FILE_SUFFIXES and not names_a_folder(report_dir):
@@ -480,8 +480,12 @@ def _check_report_dir(report_dir: PathLike, overwrite: bool) -> bool:
             f"{report_dir}: the report goes in a folder (report.txt, .csv and .json are written "
             "inside it); give a folder name such as cmp/")
     report_dir = Path(report_dir)
-    existed = report_dir.exists()
-    if existed:
+    created = None
+    for folder in (report_dir, *report_dir.parents):
+        if folder.exists():
+            break
+        created = folder
+    if created is None:
         if not report_dir.is_dir():
             raise OutputError(f"report folder {report_dir} exists and is not a folder")
         if any(report_dir.iterdir()) and not overwrite:
@@ -491,12 +495,12 @@ def _check_report_dir(report_dir: PathLike, overwrite: bool) -> bool:
         report_dir.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise OutputError(f"cannot create report folder {report_dir}: {err.strerror}") from None
-    return not existed
+    return created
 
 
 def _remove_if_no_files(folder: Path) -> None:
-    """Remove ``folder`` (made by this run) when it holds no file, only empty folders: a run
-    refused before writing anything leaves no trace."""
+    """Remove ``folder`` (made by this run, with any parents it needed) when it holds no file,
+    only empty folders: a run refused before writing anything leaves no trace."""
     if folder.is_dir() and not any(p.is_file() for p in folder.rglob("*")):
         shutil.rmtree(folder, ignore_errors=True)
 
@@ -1115,7 +1119,7 @@ def compare_methods(
     for job in jobs:  # bad ground truth (e.g. a mis-sized ROI.bmp) fails before any output
         if job.gt is not None:
             open_ground_truth(job.gt, ignore_roi_bmp=ignore_roi)
-    created = _check_report_dir(report_dir, overwrite) if out is not None else False
+    created = _check_report_dir(report_dir, overwrite) if out is not None else None
     source_options = dict(start=start, stop=stop, step=step, scale=scale, width=width, fps=fps)
 
     report = ComparisonReport(
@@ -1151,8 +1155,8 @@ def compare_methods(
             if stopped is not None:
                 break
     except (BgsubError, KeyboardInterrupt):  # refused or stopped before any result
-        if created:
-            _remove_if_no_files(out)
+        if created is not None:
+            _remove_if_no_files(created)
         raise
     if stopped is not None and len(report.rows) < len(jobs) * len(names):
         report.warnings.append(f"stopped by {str(stopped) or 'Ctrl-C'}: "

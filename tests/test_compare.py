@@ -660,11 +660,11 @@ def test_a_truncated_video_is_reported(tmp_path: Path) -> None:
 
 def test_a_refused_input_leaves_no_report_folder(tmp_path: Path, capsys) -> None:
     (tmp_path / "empty.mp4").write_bytes(b"")
-    out = tmp_path / "report"
+    out = tmp_path / "results" / "report"  # the parent it made goes too
     assert main(["compare", str(tmp_path / "empty.mp4"), "--methods", "mog2",
                  "-o", str(out)]) == 2
     assert "cannot read it as a video" in capsys.readouterr().err
-    assert not out.exists()
+    assert not (tmp_path / "results").exists()
 
 
 def test_a_refused_input_leaves_an_existing_report_folder_alone(tmp_path: Path) -> None:

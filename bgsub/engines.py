@@ -17,6 +17,7 @@ import functools
 import importlib
 import math
 import numbers
+import threading
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from typing import Any, Callable, Dict, Iterable, List, Optional
@@ -309,6 +310,8 @@ class EngineSpec:
 
 _REGISTRY: Dict[str, EngineSpec] = {}
 _loaded = False
+_loading = False
+_load_lock = threading.RLock()
 
 
 def register_engine(
@@ -324,12 +327,22 @@ def register_engine(
 
 
 def _load_builtins() -> None:
-    global _loaded
+    # Under a lock: a thread that asks while another imports waits for every built-in engine
+    # (it saw an empty registry before). The importing thread itself may ask again (a module
+    # that looks an engine up while it is imported): it gets what is registered so far.
+    global _loaded, _loading
     if _loaded:
         return
-    _loaded = True
-    for module in _BUILTIN_MODULES:
-        importlib.import_module(module)
+    with _load_lock:
+        if _loaded or _loading:
+            return
+        _loading = True
+        try:
+            for module in _BUILTIN_MODULES:
+                importlib.import_module(module)
+            _loaded = True
+        finally:
+            _loading = False
 
 
 def available_engines() -> List[EngineSpec]:

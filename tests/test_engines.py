@@ -229,3 +229,27 @@ def test_closing_an_engine_stops_its_thread_and_leaves_it_usable(name):
     for frame, mask in zip(frames[2:], expected[2:]):  # closed, not broken
         np.testing.assert_array_equal(engine.apply(frame), mask)
     engine.close()
+
+
+def test_engines_made_from_several_threads_at_first_use_all_exist():
+    # The first thread to look an engine up imports the built-ins; the others used to find an
+    # empty registry meanwhile ("unknown method 'grbm' (available: )"). A fresh interpreter.
+    import subprocess
+    import sys
+
+    code = """
+import threading, bgsub
+errors = []
+def make():
+    try:
+        bgsub.create_engine("framediff")
+    except Exception as err:
+        errors.append(str(err))
+threads = [threading.Thread(target=make) for _ in range(6)]
+[t.start() for t in threads]
+[t.join() for t in threads]
+print(errors)
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert out.strip() == "[]"

@@ -224,18 +224,22 @@ def test_dotted_folder_name_is_a_folder_when_it_exists_or_ends_in_a_slash(tmp_pa
         assert os.listdir(output) == ["bin000001.png"]
 
 
+class ClosedWriter:
+    """A cv2.VideoWriter that did not open (what OpenCV gives when FFmpeg cannot write the
+    container's header)."""
+
+    def __init__(self, *args):
+        pass
+
+    def isOpened(self):  # noqa: N802 (OpenCV's name)
+        return False
+
+    def release(self):
+        pass
+
+
 def test_failing_video_writer_is_an_output_error(tmp_path, monkeypatch):
-    class Closed:
-        def __init__(self, *args):
-            pass
-
-        def isOpened(self):  # noqa: N802 (OpenCV's name)
-            return False
-
-        def release(self):
-            pass
-
-    monkeypatch.setattr(sinks.cv2, "VideoWriter", Closed)
+    monkeypatch.setattr(sinks.cv2, "VideoWriter", ClosedWriter)
     with pytest.raises(OutputError, match="video writer"):
         open_mask_sink(tmp_path / "m.mkv", width=W, height=H, fps=20)
     assert os.listdir(tmp_path) == []

@@ -21,7 +21,7 @@ from bgsub import sinks
 from bgsub.errors import OutputError, ProcessingError
 from bgsub.sinks import MotionSink, VideoSink, VisSink, open_mask_sink, process
 
-from test_sinks import H, W, _masks, _read_video
+from test_sinks import ClosedWriter, H, W, _masks, _read_video
 
 _REAL_WRITER = cv2.VideoWriter
 
@@ -206,17 +206,7 @@ def test_a_mask_video_the_full_disk_cut_short_is_kept_and_says_what_it_holds(
 
 def test_a_video_writer_that_cannot_open_on_a_full_disk_says_the_disk_is_full(tmp_path,
                                                                            monkeypatch):
-    class Closed:  # what OpenCV gives when FFmpeg cannot write the container's header
-        def __init__(self, *args):
-            pass
-
-        def isOpened(self):  # noqa: N802 (OpenCV's name)
-            return False
-
-        def release(self):
-            pass
-
-    monkeypatch.setattr(cv2, "VideoWriter", Closed)
+    monkeypatch.setattr(cv2, "VideoWriter", ClosedWriter)
     monkeypatch.setattr(sinks, "_free_bytes", lambda folder: 0)
     with pytest.raises(OutputError, match=r"v.mp4: the disk is full; OpenCV cannot open"):
         VideoSink(tmp_path / "v.mp4", fps=10, width=W, height=H)

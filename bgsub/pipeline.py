@@ -198,12 +198,15 @@ def spans_frame(result: MotionResult, shape: tuple, min_extent: float) -> bool:
     return max(span_x, span_y) >= min_extent
 
 
+def _translation(dx: float, dy: float) -> np.ndarray:
+    return np.array([[1.0, 0.0, dx], [0.0, 1.0, dy], [0.0, 0.0, 1.0]])
+
+
 def _shift_of(matrix: np.ndarray, shape: tuple) -> np.ndarray:
     """The translation (3, 3) that moves the centre of an ``(H, W)`` frame as ``matrix`` does."""
     h, w = shape[:2]
     centre = np.array([[(w - 1) / 2.0, (h - 1) / 2.0]])
-    dx, dy = (apply_homography(matrix, centre) - centre)[0]
-    return np.array([[1.0, 0.0, dx], [0.0, 1.0, dy], [0.0, 0.0, 1.0]])
+    return _translation(*(apply_homography(matrix, centre) - centre)[0])
 
 
 def _largest_corner_shift(matrix: np.ndarray, shape: tuple) -> float:
@@ -547,7 +550,7 @@ class MovingCameraEngine(Engine):
         (dx, dy), response = cv2.phaseCorrelate(warped, gray.astype(np.float32), self._window)
         if response < _MIN_REGISTRATION_RESPONSE or np.hypot(dx, dy) > _MAX_REGISTRATION:
             return matrix  # no clear peak (a textureless or changed scene): keep the estimate
-        return np.array([[1.0, 0.0, dx], [0.0, 1.0, dy], [0.0, 0.0, 1.0]]) @ matrix
+        return _translation(dx, dy) @ matrix
 
     def _violation_map(self, result: MotionResult, matrix: np.ndarray, prev_gray: np.ndarray,
                        gray: np.ndarray, noise: float) -> Optional[np.ndarray]:

@@ -994,18 +994,16 @@ def process(frames: Iterable[Tuple[int, np.ndarray]], engine, masks: MaskSink, *
     started = time.perf_counter()
     for index, frame in frames:
         mask = engine.apply(frame)
-        try:
-            # (A plugin engine's 0/1 mask would be written as all background.)
-            mask = _binary_mask(mask)
-        except ValueError as err:
-            raise ProcessingError(f"{type(engine).__name__} returned an unusable mask for frame "
-                                  f"{index + 1}: {err}") from None
         # Drawn before any write, so Ctrl-C while drawing leaves this frame out of every output;
         # Ctrl-C while writing waits until it is in all of them: outputs that differ in length
         # would no longer line up frame for frame.
         picture = engine.debug_image() if flow_vis is not None else None
         with hold_interrupts():
-            masks.write(mask, index)
+            try:  # the first write checks the engine's mask (a 0/1 mask: all background)
+                masks.write(mask, index)
+            except ValueError as err:
+                raise ProcessingError(f"{type(engine).__name__} returned an unusable mask for "
+                                      f"frame {index + 1}: {err}") from None
             if vis is not None:
                 vis.write(frame, mask)
             if flow_vis is not None:

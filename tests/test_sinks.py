@@ -426,6 +426,22 @@ def test_process_refuses_an_engines_0_1_mask_as_a_processing_error(tmp_path):
             process(frames, _ZeroOne(), sink)
 
 
+class _Halved(_Threshold):
+    """A plugin engine that returns masks of half the frame's size."""
+
+    def apply(self, image, fgmask=None, learning_rate=-1.0):
+        return super().apply(image)[::2, ::2]
+
+
+def test_process_refuses_an_engines_mask_of_another_size_as_a_processing_error(tmp_path):
+    frames = [(0, np.full((H, W, 3), 200, np.uint8))]
+    with open_mask_sink(tmp_path / "out", width=W, height=H, fps=10) as sink:
+        with pytest.raises(ProcessingError, match=f"_Halved returned an unusable mask for "
+                                                  f"frame 1: a mask must be {W}x{H}"):
+            process(frames, _Halved(), sink)
+    assert sink.frames_written == 0
+
+
 def test_process_refuses_flow_vis_without_debug_image(tmp_path):
     with open_mask_sink(tmp_path / "out", width=W, height=H, fps=10) as sink, \
             VideoSink(tmp_path / "f.mp4", fps=10) as flow:

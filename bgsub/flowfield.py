@@ -14,6 +14,7 @@ Coordinates: a pyramid level ``l`` pixel ``x_l`` is ``x / 2**l`` in full-resolut
 
 from __future__ import annotations
 
+import math
 import os
 import threading
 import warnings
@@ -43,6 +44,8 @@ __all__ = [
     "prepare_first_frame",
     "auto_levels",
     "motion_reach",
+    "PyramidReach",
+    "pyramid_reach",
     "model_range",
     "patch_motion",
     "dense_from_patches",
@@ -195,6 +198,51 @@ def motion_reach(levels: int, *, model_disp: int, search: int = 0) -> int:
     return step * (1 + max(0, int(search)) if levels > 1 else 1)
 
 
+@dataclass(frozen=True)
+class PyramidReach:
+    """The pyramid :func:`estimate_flow` reads frames of one size with, and how far it reads:
+    what :func:`pyramid_reach` returns, so that a caller who plans the ``search`` or says the
+    reach in its own words (``bgsub flow``) counts as :func:`estimate_flow` does.
+
+    Attributes
+    ----------
+    levels : int
+        Pyramid levels read.
+    model_disp : int
+        The model's displacement range.
+    """
+
+    levels: int
+    model_disp: int
+
+    def reach(self, search: int = 0) -> int:
+        """Largest motion read from the start with the ``search`` grid (:func:`motion_reach`)."""
+        return motion_reach(self.levels, model_disp=self.model_disp, search=search)
+
+    def search_for(self, max_motion: float, *, limit: int) -> int:
+        """The smallest ``search`` whose reach covers ``max_motion``, at most ``limit`` (0 with
+        one level, where :func:`estimate_flow` reads no grid of starts)."""
+        step = self.reach()
+        if self.levels <= 1 or step >= max_motion:
+            return 0
+        return min(int(limit), math.ceil(max_motion / step) - 1)
+
+
+def pyramid_reach(shape: tuple, *, max_motion: float, model_disp: int, patch_size: int,
+                  levels: Optional[int] = None) -> PyramidReach:
+    """The pyramid :func:`estimate_flow` reads frames of ``shape`` (H, W) with: ``levels``
+    (default :func:`auto_levels`), fewer where a level would be less than two patches across
+    (as :meth:`FramePyramid.levels` stops)."""
+    if levels is None:
+        levels = auto_levels(shape, max_motion=max_motion, model_disp=model_disp,
+                             patch_size=patch_size)
+    wanted, levels = max(1, int(levels)), 1
+    h, w = shape[:2]
+    while levels < wanted and min(h, w) >= 2 * patch_size:
+        h, w, levels = (h + 1) // 2, (w + 1) // 2, levels + 1
+    return PyramidReach(levels=levels, model_disp=model_disp)
+
+
 class FramePyramid:
     """A frame's gray image pyramid (``cv2.pyrDown``), built once and used as the second frame
     of one pair and the first of the next.
@@ -255,29 +303,30 @@ class _Plan:
     """Which pyramid levels and grids :func:`estimate_flow` reads (strides in each level's own
     pixels)."""
 
-    levels: int
+    pyramid: PyramidReach
     fine: int
     coarse_stride: int
     fine_stride: int
     pre_stride: int
     iterations: int
 
+    @property
+    def levels(self) -> int:
+        """Pyramid levels read (those of :attr:`pyramid`)."""
+        return self.pyramid.levels
+
 
 def _plan(shape: tuple, *, p: int, rng: int, levels: Optional[int], max_motion: float,
           stride: int, coarse_stride: Optional[int], finest: int,
           refine_stride: Optional[int], iterations: int) -> _Plan:
-    if levels is None:
-        levels = auto_levels(shape, max_motion=max_motion, model_disp=rng, patch_size=p)
-    wanted, levels = max(1, int(levels)), 1
-    h, w = shape[:2]
-    while levels < wanted and min(h, w) >= 2 * p:  # as FramePyramid.levels stops
-        h, w, levels = (h + 1) // 2, (w + 1) // 2, levels + 1
-    fine = min(max(0, int(finest)), levels - 1)
+    pyramid = pyramid_reach(shape, max_motion=max_motion, model_disp=rng, patch_size=p,
+                            levels=levels)
+    fine = min(max(0, int(finest)), pyramid.levels - 1)
     fine_stride = stride if fine == 0 else max(4, int(round(stride / 2**fine)))
     pre_stride = fine_stride
     if refine_stride is not None:
         pre_stride = max(4, int(round(int(refine_stride) / 2**fine)))
-    return _Plan(levels=levels, fine=fine, coarse_stride=max(4, int(coarse_stride or stride)),
+    return _Plan(pyramid=pyramid, fine=fine, coarse_stride=max(4, int(coarse_stride or stride)),
                  fine_stride=fine_stride, pre_stride=pre_stride,
                  iterations=max(1, int(iterations)))
 
@@ -520,9 +569,9 @@ def estimate_flow(
         texture_scale=texture_scale, max_patches=max_patches, iterations=iterations,
         finest=finest, refine_stride=refine_stride, start_tolerance=start_tolerance)
     pyr2 = fp2.levels(plan.levels, p)
-    reach = motion_reach(plan.levels, model_disp=rng, search=search)
+    reach = plan.pyramid.reach(search)
     if warn_range and levels is None and max_motion > reach:
-        n, step = plan.levels, motion_reach(plan.levels, model_disp=rng, search=0)
+        n, step = plan.levels, plan.pyramid.reach()
         hint = (f"pass search={search + 1} or more (each adds {step} px) or a prior near the "
                 "motion" if n > 1 else "give larger frames")
         warnings.warn(f"max_motion={max_motion:g} px is out of reach on {g1.shape[1]}x"

@@ -5,6 +5,7 @@ Each sub-command lives in its own module of this package and exposes
 This module only dispatches and turns errors into one line on stderr:
 
 * a usage error (a missing argument, an unknown option) -> argparse's message, exit status 2;
+  an option before the sub-command that ``bgsub`` itself does not take is named as such;
 
 * :class:`bgsub.errors.BgsubError` -> its message, exit status ``err.exit_code`` (2 bad input, 1
   failure while processing);
@@ -21,10 +22,11 @@ from __future__ import annotations
 import argparse
 import contextlib
 import importlib
+import itertools
 import os
 import signal
 import sys
-from typing import Iterator, List, NoReturn, Optional
+from typing import Dict, Iterator, List, NoReturn, Optional
 
 from bgsub.errors import BgsubError
 
@@ -83,10 +85,55 @@ def build_parser() -> argparse.ArgumentParser:
 def _command_parser(parser: argparse.ArgumentParser,
                     args: argparse.Namespace) -> argparse.ArgumentParser:
     """The sub-command's parser of ``args`` (``parser`` itself when there is none)."""
+    return _commands(parser).get(getattr(args, "command", None), parser)
+
+
+def _commands(parser: argparse.ArgumentParser) -> Dict[str, argparse.ArgumentParser]:
+    """The sub-command parsers of ``parser`` by name (aliases included)."""
     for action in parser._actions:
         if isinstance(action, argparse._SubParsersAction):
-            return action.choices.get(getattr(args, "command", None), parser)
-    return parser
+            return action.choices
+    return {}
+
+
+def _option_name(token: str) -> str:
+    """The option a command-line word names: ``--name`` of ``--name=value``, ``-x`` of
+    ``-xVALUE``."""
+    return token.split("=", 1)[0] if token.startswith("--") else token[:2]
+
+
+def _has_option(parser: argparse.ArgumentParser, token: str) -> bool:
+    """Whether ``parser`` takes the option of the word ``token`` (see :func:`_option_name`),
+    also as a prefix of a long option (argparse's abbreviations)."""
+    names = [name for action in parser._actions for name in action.option_strings]
+    typed = _option_name(token)
+    if typed.startswith("--"):
+        return any(name.startswith(typed) for name in names)
+    return typed in names
+
+
+def _check_leading_options(parser: argparse.ArgumentParser, argv: List[str]) -> None:
+    """Refuse an option before the sub-command that ``bgsub`` itself does not take.
+
+    argparse sets such an option aside and has the sub-command's parser report it, as if it
+    were that command's unknown option (``bgsub --quiet run ...``: "unrecognized arguments:
+    --quiet (see `bgsub run --help`)", which lists --quiet); one with a value even makes the
+    value the command (``--model natural flow ...``: "invalid choice: 'natural'").
+    """
+    commands = _commands(parser)
+    before = list(itertools.takewhile(lambda token: token not in commands, argv))
+    command = argv[len(before)] if len(before) < len(argv) else None
+    if command is None:  # the first word that is no option is an unknown command, which
+        # argparse names: only the options before it are looked at here
+        before = list(itertools.takewhile(lambda token: token.startswith("-"), argv))
+    for token in itertools.takewhile(lambda token: token != "--", before):
+        if not token.startswith("-") or token == "-" or _has_option(parser, token):
+            continue
+        name = _option_name(token)
+        if command is not None and _has_option(commands[command], token):
+            commands[command].error(f"{name} is an option of `bgsub {command}`, not of bgsub: "
+                                    f"put it after `{command}`")
+        parser.error(f"{name} is not a bgsub option")
 
 
 class Terminated(KeyboardInterrupt):
@@ -132,6 +179,7 @@ def main(argv: Optional[List[str]] = None) -> int:
 
 def _main(argv: Optional[List[str]]) -> int:
     parser = build_parser()
+    _check_leading_options(parser, sys.argv[1:] if argv is None else list(argv))
     args, extra = parser.parse_known_args(argv)
     if extra:  # named by the command's parser, whose --help lists what it takes
         _command_parser(parser, args).error(f"unrecognized arguments: {' '.join(extra)}")

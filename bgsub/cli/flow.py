@@ -166,18 +166,15 @@ def _search_for(shape: Tuple[int, int], model: Any, args: argparse.Namespace) ->
     """The grid of coarsest-level starts that lets the pyramid a frame of ``shape`` (H, W)
     allows read --max-motion: small frames allow fewer levels than it needs (0 when the levels
     reach it alone, or with --levels)."""
-    from bgsub.flowfield import auto_levels, model_range, motion_reach
+    from bgsub.flowfield import model_range, pyramid_reach
 
     if args.levels is not None:
         return 0
-    rng = model_range(model)
-    levels = auto_levels(shape, max_motion=args.max_motion, model_disp=rng,
-                         patch_size=int(model.patch_size))
-    step = motion_reach(levels, model_disp=rng)
-    if step >= args.max_motion:
-        return 0
-    search = 0 if levels <= 1 else min(_MAX_SEARCH, math.ceil(args.max_motion / step) - 1)
-    reach = motion_reach(levels, model_disp=rng, search=search)
+    # The pyramid estimate_flow plans for the same frame, model and --max-motion.
+    pyramid = pyramid_reach(shape, max_motion=args.max_motion, model_disp=model_range(model),
+                            patch_size=int(model.patch_size))
+    search = pyramid.search_for(args.max_motion, limit=_MAX_SEARCH)
+    reach = pyramid.reach(search)
     if reach < args.max_motion and not getattr(args, "reach_warned", False):
         warn(f"--max-motion {args.max_motion:g} is beyond what {shape[1]}x{shape[0]} frames "
              f"allow: motions above about {reach} px are misread")

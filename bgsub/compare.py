@@ -790,7 +790,8 @@ def _scoring(job: _Job, info: VideoInfo, *, start: int, stop: Optional[int], ste
     warnings = []
     input_end = (start + (info.frame_count - 1) * step + 1 if info.frame_count is not None
                  else None)
-    if stop is None and input_end is not None and input_end > max(gt.frames):
+    gt_end = gt.sequence_end  # None: sparse ground truth, or a window; it states no end
+    if stop is None and input_end is not None and gt_end is not None and input_end > gt_end:
         # As `bgsub eval` says of masks past the ground truth: often another clip's frames.
         warnings.append(f"{job.name}: {job.frames} holds frames up to {input_end}, past the "
                         f"ground truth's last ({max(gt.frames)} in {job.gt}): check that the "

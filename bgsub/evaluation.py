@@ -44,7 +44,13 @@ Predictions
     them is an error (ignoring them would hide that the user expected something to shift). A
     prediction longer than the ground truth (a mask video with a frame past its last frame, or
     masks numbered past it) is scored on the frames with ground truth, with a warning in
-    :attr:`SequenceResult.warnings`: often the masks of another sequence. A pixel is
+    :attr:`SequenceResult.warnings`: often the masks of another sequence. Only ground truth with
+    a file for every frame from 1 (CDnet's layout) states where the input ends: its last frame,
+    or the temporal ROI's end when later (:attr:`GroundTruth.sequence_end`); ground truth with
+    gaps (every N-th frame labelled) or starting later (a labelled window) states none, and
+    masks past it draw no warning. CDnet numbers frames from 1: a ``bin000000.png`` is
+    ignored with a warning (masks numbered from 0 would each be scored against the previous
+    frame's ground truth; the warning says so when the masks look shifted that way). A pixel is
     foreground when its value is > 127 (colour masks are converted to gray first). For a
     dataset, the prediction of the sequence at ``GT_ROOT/REL`` (``REL`` = its path relative to
     the root, e.g. ``cameraJitter/traffic``; ``NAME`` = its folder name) is the first that
@@ -115,9 +121,11 @@ import numpy as np
 from tqdm import tqdm
 
 from bgsub.errors import InputError, given_path
+from bgsub.sources import VIDEO_SUFFIXES, open_source
 
-#: Mask-video extensions recognised when looking for a sequence's prediction in a dataset.
-VIDEO_EXTENSIONS = (".mkv", ".avi", ".mp4", ".mov", ".m4v", ".webm")
+#: Mask-video extensions recognised when looking for a sequence's prediction in a dataset, in
+#: that order: :data:`bgsub.sources.VIDEO_SUFFIXES` (one list for every module that names videos).
+VIDEO_EXTENSIONS = VIDEO_SUFFIXES
 #: The seven CDnet metrics, in CDnet's order (attribute names of :class:`Metrics`).
 METRIC_NAMES = ("recall", "specificity", "fpr", "fnr", "pwc", "precision", "f_measure")
 METRIC_TITLES = ("Recall", "Specificity", "FPR", "FNR", "PWC", "Precision", "F-measure")
@@ -410,6 +418,32 @@ class GroundTruth:
             raise InputError(f"no ground-truth frames left to evaluate in {self.path}{roi}")
         return numbers
 
+    @property
+    def sequence_end(self) -> Optional[int]:
+        """The last frame number of the input, as the ground truth states it; None if it does not.
+
+        CDnet's ground truth has a ``gtNNNNNN.png`` for every input frame from 1 (frames outside
+        the temporal ROI too), so its last file is the input's last frame; a temporal ROI that
+        ends later says the input goes on at least that far (ground truth not given for all of
+        it). Ground truth with gaps (a label every N-th frame) or starting after frame 1 (a
+        window of the input) labels a sample or a part: where it stops says nothing about
+        where the input does, so masks that go on past it are no sign of another sequence's.
+        """
+        last = next(reversed(self.frames))  # frames are sorted
+        if min(self.frames) != 1 or len(self.frames) != last:  # not every frame from 1
+            return None
+        return max(last, self.temporal_roi[1]) if self.temporal_roi is not None else last
+
+    def describe_end(self) -> str:
+        """``"SEQ has 10 ground-truth frames, up to gt000010.png"`` (and the temporal ROI's
+        end when it lies later): what a warning about masks past the end compares them with."""
+        last = next(reversed(self.frames))
+        text = (f"{self.path} has {len(self.frames)} ground-truth frames, up to "
+                f"{self.frames[last].name}")
+        if self.temporal_roi is not None and self.temporal_roi[1] > last:
+            text += f", and its temporal ROI ends at frame {self.temporal_roi[1]}"
+        return text
+
     def labels(self, number: int) -> np.ndarray:
         """``(H, W) uint8`` CDnet labels of frame ``number``."""
         path = self.frames[number]
@@ -624,7 +658,14 @@ class _FolderReader(_PredictionReader):
     def __init__(self, folder: Path, gt: Optional[Path] = None) -> None:
         self.label = str(folder)
         self.files = _bin_frames(folder)
+        # CDnet numbers frames from 1: bin000000.png is no frame's mask. Set aside rather than
+        # dropped, so the result can say it was not scored and what it suggests.
+        self.zero = self.files.pop(0, None)
         if not self.files:
+            if self.zero is not None:
+                raise InputError(f"the only mask in {folder} is {self.zero.name}, but CDnet "
+                                 "numbers frames from 1 (bin000001.png is the mask of "
+                                 "in000001.jpg): renumber the masks from 1")
             raise InputError(_no_masks_message(folder, gt))
 
     def read(self, numbers: Sequence[int]) -> Iterator[Tuple[int, np.ndarray]]:
@@ -639,6 +680,29 @@ class _FolderReader(_PredictionReader):
 
     def frame_name(self, number: int) -> str:
         return f"bin{number:06d}.png"
+
+    def numbered_from_0(self, gt_end: int) -> bool:
+        """Whether the masks are ``bin000000.png`` to ``bin{gt_end - 1}.png``, every one: the
+        frames 1 to ``gt_end`` of the ground truth numbered from 0."""
+        return (self.zero is not None and len(self.files) == gt_end - 1
+                and max(self.files) == gt_end - 1)
+
+    def zero_warning(self, gt_end: int) -> str:
+        """The one-line warning about the folder's ``bin000000.png`` (``""`` without one),
+        with the fix when the masks look numbered from 0 for ground truth ending at
+        ``gt_end``."""
+        if self.zero is None:
+            return ""
+        text = (f"{self.zero.name} in {self.label} is not a CDnet frame number (they start at "
+                "1: bin000001.png is the mask of in000001.jpg) and was ignored")
+        # Mask K of a count from 0 is of frame K + 1, but meets gtK: a frame too early.
+        if not self.numbered_from_0(gt_end):
+            return (text + "; the masks may be numbered from 0: then each is paired with "
+                    "the ground truth of the frame before its own")
+        return (text + f": the masks {self.zero.name}-{self.frame_name(gt_end - 1)} look "
+                f"numbered from 0 for the ground truth's frames 1-{gt_end}, so each is paired "
+                "with the ground truth of the frame before its own; renumber them from 1 "
+                "(binK.png -> bin(K+1).png, as `bgsub run` writes them)")
 
     def range_hint(self, selected: Sequence[int], *, skip_first: bool = False) -> str:
         """``"to score just the frames with a mask (40, bin000991.png-bin001030.png), use
@@ -703,15 +767,14 @@ class _VideoReader(_PredictionReader):
         self.path = path
         self.frames = frames
         self.frames_read = 0
-        #: The ground truth's last frame number, when it is known (set before :meth:`read`).
+        #: The input's last frame number as the ground truth states it
+        #: (:attr:`GroundTruth.sequence_end`), when it does (set before :meth:`read`).
         self.gt_end: Optional[int] = None
         #: After :meth:`read`: ``(k, total)`` when the video has a frame ``k`` (0-based) past
         #: ``gt_end``; ``total`` is its frame count when the container states one above ``k``.
         self.past_gt: Optional[Tuple[int, Optional[int]]] = None
 
     def read(self, numbers: Sequence[int]) -> Iterator[Tuple[int, np.ndarray]]:
-        from bgsub.sources import open_source  # the frame reader (another stage's module)
-
         wanted = set(numbers)
         # ``numbers`` are all frames the video covers, so the last one is exactly its frame
         # ``last``. Reading from the start (not from the first wanted frame) lets a video that
@@ -994,28 +1057,41 @@ def evaluate_sequence(
                              f"ground truth's selected frames are {numbers[0]}-{numbers[-1]}")
         numbers = held
     warnings: List[str] = []
-    gt_end = max(gt.frames)
+    # Masks past the end of the input the ground truth labels are often another sequence's;
+    # sparse ground truth, or a labelled window of the input, states no such end.
+    gt_end = gt.sequence_end
     if isinstance(reader, _FolderReader):
-        beyond = [n for n in reader.files if n > gt_end]
+        beyond = [n for n in reader.files if n > gt_end] if gt_end is not None else []
         if beyond:
             warnings.append(
                 f"{len(beyond)} of the {len(reader.files)} masks in {reader.label} are numbered "
                 f"past the ground truth's last frame (up to {reader.frame_name(max(beyond))}; "
-                f"{gt.path} has {len(gt.frames)} ground-truth frames, up to "
-                f"{gt.frames[gt_end].name}): check that these masks belong to this sequence; "
+                f"{gt.describe_end()}): check that these masks belong to this sequence; "
                 "only frames with ground truth were scored")
     elif isinstance(reader, _VideoReader):
         reader.gt_end = gt_end
+    zero_warning, shifted = "", False
+    if isinstance(reader, _FolderReader):
+        shift_end = gt_end if gt_end is not None else max(gt.frames)
+        zero_warning, shifted = reader.zero_warning(shift_end), reader.numbered_from_0(shift_end)
+        if zero_warning:
+            warnings.append(zero_warning)
     # Masks of a contiguous part (or every N-th frame) of the sequence: the options that score
-    # just those, rather than --allow-missing, which scores the rest as missed objects.
+    # just those, rather than --allow-missing, which scores the rest as missed objects. Not for
+    # masks numbered from 0: a range would score them against the wrong frames all the same.
     missing_hint = (reader.range_hint(selected, skip_first=skip_first)
-                    if isinstance(reader, _FolderReader) else "")
+                    if isinstance(reader, _FolderReader) and not shifted else "")
 
     def advice(count: int) -> str:
+        # An error drops the warnings: a bin000000.png is named in it (a reason for a missing
+        # mask); masks numbered from 0 want renumbering, which no option does.
+        zero = f"; {zero_warning}" if zero_warning else ""
+        if shifted:
+            return zero
         if missing_hint:
-            return (f"; {missing_hint}; or use --allow-missing to count the {count} frames "
-                    "without one as background")
-        return "; use --allow-missing to count them as background"
+            return (f"{zero}; {missing_hint}; or use --allow-missing to count the {count} "
+                    "frames without one as background")
+        return f"{zero}; use --allow-missing to count them as background"
 
     if isinstance(reader, _FolderReader) and not allow_missing:
         absent = [n for n in numbers if n not in reader.files]
@@ -1081,8 +1157,7 @@ def evaluate_sequence(
                      f"{video.flags()})")
         warnings.append(
             f"mask video {reader.label} holds {held}, past the end of the ground truth: "
-            f"{gt.path} has {len(gt.frames)} ground-truth frames, up to "
-            f"{gt.frames[gt_end].name}; check that the video belongs to this sequence (only "
+            f"{gt.describe_end()}; check that the video belongs to this sequence (only "
             "frames with ground truth were scored)")
     if scaled_from is not None:
         notes.append(f"{scaled_from} predictions scaled to {gt.width}x{gt.height} (nearest "

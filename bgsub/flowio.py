@@ -21,6 +21,7 @@ import numpy as np
 
 from bgsub.errors import InputError, OutputError
 from bgsub.sinks import write_atomically
+from bgsub.sources import VIDEO_SUFFIXES
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -363,16 +364,11 @@ def read_image(path: PathLike) -> np.ndarray:
     data = np.fromfile(str(p), dtype=np.uint8)  # np.fromfile + imdecode: any path encoding
     image = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
     if image is None:
-        if p.suffix.lower() in _VIDEO_SUFFIXES:
+        if p.suffix.lower() in VIDEO_SUFFIXES:  # a name that says "video"
             raise InputError(f"{p} is a video, not an image: give a video alone (bgsub flow "
                              f"{p.name} -o flow.mp4) or two images")
         raise InputError(f"cannot read image (not a format OpenCV decodes, or corrupt): {p}")
     return image
-
-
-# Names that say "video" when an image was expected (for the message above).
-_VIDEO_SUFFIXES = frozenset({".mp4", ".mkv", ".avi", ".mov", ".webm", ".m4v", ".mpg", ".mpeg",
-                             ".wmv", ".flv", ".ts", ".3gp"})
 
 
 def check_image_file(path: PathLike) -> Path:

@@ -58,6 +58,13 @@ IMAGE_EXTENSIONS = frozenset(
      ".pnm", ".tif", ".tiff", ".sr", ".ras", ".exr", ".hdr", ".pic"}
 )
 
+#: File name extensions of video containers, in the order a mask video is looked for
+#: (``NAME.mkv`` before ``NAME.avi`` ...: `bgsub eval` on a dataset, `bgsub compare` reports):
+#: the lossless mask videos `bgsub run` writes first, then its lossy ones, then other containers
+#: FFmpeg reads. Also what names a file as a video where an image was expected.
+VIDEO_SUFFIXES = (".mkv", ".avi", ".mp4", ".mov", ".m4v", ".webm", ".mpg", ".mpeg", ".wmv",
+                  ".flv", ".ts", ".3gp")
+
 PathLike = Union[str, "os.PathLike[str]"]
 
 

@@ -31,8 +31,11 @@ Only frames inside the temporal ROI count, and only pixels inside ROI.bmp whose 
 error. A frame to evaluate without a prediction is an error unless --allow-missing (which counts
 it as all background); when the masks there are one run of frames, the error names the options
 that score just those. Metrics with a zero denominator are undefined (n/a, JSON null). A mask
-video longer than the ground truth, or masks numbered past its last frame, are warned about:
-often masks of another sequence.
+video longer than the ground truth, or masks numbered past its last frame, are warned about
+(often masks of another sequence) when the ground truth has a file for every frame from 1, as
+CDnet's (or past its temporal ROI's end when that is later): labels for every N-th frame, or
+for a window of frames, say nothing of where the input ends. A bin000000.png is ignored with a
+warning: CDnet numbers frames from 1 (masks numbered from 0 would be scored one frame off).
 
 A mask video has no frame numbers: its first frame is taken as frame 1 and the next as frame 2.
 For a video that `bgsub run` wrote with --start/--step (and --stop), give eval the same flags

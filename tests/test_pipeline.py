@@ -209,10 +209,9 @@ def test_a_frozen_model_follows_a_pan_without_drifting_or_blurring(name):
     for k, (frame, _) in enumerate(_frames(n=40, pan=3.3, square=False)):
         mask = eng.apply(frame, learning_rate=-1 if k < 5 else 0)
         false.append(np.count_nonzero(mask) / mask.size)
-    # (grbm still drifts slowly: 12 % at the 35th frozen frame, where the oldest pixels have
-    # been warped 35 times; compensated stays below 1 %.)
-    assert max(false[:25]) < 0.02, np.round(false, 3)
-    assert max(false) < 0.15, np.round(false, 3)
+    # (Until the frozen model was registered by a fit to tracked corners, not by a shift
+    # alone, grbm still drifted slowly: 12 % at the 35th frozen frame.)
+    assert max(false) < 0.02, np.round(false, 3)
 
 
 def test_a_frozen_model_is_registered_to_the_frame():

@@ -16,6 +16,7 @@ them 127; these engines map them to 0 (background), so the mask contract holds e
 
 from __future__ import annotations
 
+import functools
 from typing import Any, Callable, Optional
 
 import cv2
@@ -73,11 +74,21 @@ class OpenCVSubtractor(Engine):
         With such a rate on the very first frame, the subtractor first learns that frame this
         many times at its automatic rate (KNN: its sample count, so the frozen model is that
         frame rather than empty sample sets).
+    name : str
+        The engine's name, for messages.
+    seed : int, optional
+        The seed the caller gave OpenCV's generator (``cv2.setRNGSeed``) when it made the
+        engine; given again when a pickled engine is loaded (in another process, say).
+
+    An engine pickles (and deep-copies) before its first frame only: OpenCV's model cannot.
     """
 
     def __init__(self, make: Callable[[], Any], *, learning_rate: float = -1.0,
-                 min_rate: float = 0.0, first_frame_repeats: int = 0) -> None:
+                 min_rate: float = 0.0, first_frame_repeats: int = 0, name: str = "opencv",
+                 seed: Optional[int] = None) -> None:
         self._make = make
+        self.name = name
+        self.seed = seed
         self.subtractor = make()
         self.learning_rate = float(learning_rate)
         self.min_rate = float(min_rate)
@@ -117,6 +128,24 @@ class OpenCVSubtractor(Engine):
         if self._shape is None:
             return None
         return self.subtractor.getBackgroundImage()
+
+    def __getstate__(self) -> dict:
+        # OpenCV keeps the model in C++, out of pickle's (and deepcopy's) reach: only an engine
+        # that has seen no frame, whose model is what make() builds, travels (to the worker
+        # processes of a pool, say). One mid-video would come back with an empty model.
+        if self._shape is not None:
+            raise TypeError(f"a {self.name} engine that has processed frames cannot be pickled "
+                            "or copied (OpenCV keeps its model out of Python's reach): pickle "
+                            "or copy it before its first frame, or create one where it runs")
+        state = dict(self.__dict__)
+        del state["subtractor"]
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self.subtractor = self._make()
+        if self.seed is not None:
+            cv2.setRNGSeed(self.seed)  # as when the engine was made: the same masks there
 
 
 _MOG2_PARAMS = {
@@ -181,21 +210,32 @@ def make_mog2(
     _require(shadow_threshold < 1,
              f"mog2: parameter 'shadow_threshold' must be below 1, not {shadow_threshold!r}")
 
-    def make() -> Any:
-        sub = cv2.createBackgroundSubtractorMOG2(
-            history=int(history), varThreshold=float(var_threshold),
-            detectShadows=bool(detect_shadows))
-        sub.setBackgroundRatio(float(background_ratio))
-        sub.setNMixtures(int(n_mixtures))
-        sub.setVarThresholdGen(float(var_threshold_gen))
-        sub.setVarInit(float(var_init))
-        sub.setVarMin(float(var_min))
-        sub.setVarMax(float(var_max))
-        sub.setComplexityReductionThreshold(float(complexity_reduction_threshold))
-        sub.setShadowThreshold(float(shadow_threshold))
-        return sub
+    make = functools.partial(  # (a module-level function: the engine pickles before use)
+        _new_mog2, history=history, var_threshold=var_threshold, detect_shadows=detect_shadows,
+        background_ratio=background_ratio, n_mixtures=n_mixtures,
+        var_threshold_gen=var_threshold_gen, var_init=var_init, var_min=var_min, var_max=var_max,
+        complexity_reduction_threshold=complexity_reduction_threshold,
+        shadow_threshold=shadow_threshold)
+    return OpenCVSubtractor(make, learning_rate=learning_rate, name="mog2")
 
-    return OpenCVSubtractor(make, learning_rate=learning_rate)
+
+def _new_mog2(*, history: int, var_threshold: float, detect_shadows: bool,
+              background_ratio: float, n_mixtures: int, var_threshold_gen: float,
+              var_init: float, var_min: float, var_max: float,
+              complexity_reduction_threshold: float, shadow_threshold: float) -> Any:
+    """A configured ``cv2.BackgroundSubtractorMOG2`` (the ``make`` of the ``mog2`` engine)."""
+    sub = cv2.createBackgroundSubtractorMOG2(
+        history=int(history), varThreshold=float(var_threshold),
+        detectShadows=bool(detect_shadows))
+    sub.setBackgroundRatio(float(background_ratio))
+    sub.setNMixtures(int(n_mixtures))
+    sub.setVarThresholdGen(float(var_threshold_gen))
+    sub.setVarInit(float(var_init))
+    sub.setVarMin(float(var_min))
+    sub.setVarMax(float(var_max))
+    sub.setComplexityReductionThreshold(float(complexity_reduction_threshold))
+    sub.setShadowThreshold(float(shadow_threshold))
+    return sub
 
 
 _KNN_PARAMS = {
@@ -254,20 +294,27 @@ def make_knn(
     _require(shadow_threshold < 1,
              f"knn: parameter 'shadow_threshold' must be below 1, not {shadow_threshold!r}")
 
-    def make() -> Any:
-        sub = cv2.createBackgroundSubtractorKNN(
-            history=int(history), dist2Threshold=float(dist2_threshold),
-            detectShadows=bool(detect_shadows))
-        sub.setNSamples(int(n_samples))
-        sub.setkNNSamples(int(knn_samples))
-        sub.setShadowThreshold(float(shadow_threshold))
-        return sub
-
+    make = functools.partial(_new_knn, history=history, dist2_threshold=dist2_threshold,
+                             detect_shadows=detect_shadows, n_samples=n_samples,
+                             knn_samples=knn_samples, shadow_threshold=shadow_threshold)
     if seed >= 0:
         cv2.setRNGSeed(int(seed))
     # 1e-6: a sample kept for ~10^5 frames, frozen in practice (see OpenCVSubtractor).
     return OpenCVSubtractor(make, learning_rate=learning_rate, min_rate=1e-6,
-                            first_frame_repeats=int(n_samples))
+                            first_frame_repeats=int(n_samples), name="knn",
+                            seed=int(seed) if seed >= 0 else None)
+
+
+def _new_knn(*, history: int, dist2_threshold: float, detect_shadows: bool, n_samples: int,
+             knn_samples: int, shadow_threshold: float) -> Any:
+    """A configured ``cv2.BackgroundSubtractorKNN`` (the ``make`` of the ``knn`` engine)."""
+    sub = cv2.createBackgroundSubtractorKNN(
+        history=int(history), dist2Threshold=float(dist2_threshold),
+        detectShadows=bool(detect_shadows))
+    sub.setNSamples(int(n_samples))
+    sub.setkNNSamples(int(knn_samples))
+    sub.setShadowThreshold(float(shadow_threshold))
+    return sub
 
 
 class FrameDifference(Engine):

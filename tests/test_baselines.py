@@ -291,3 +291,32 @@ def test_framediff_help_says_gray_like_everything_else():
     texts = [spec.params["threshold"].help, baselines.__doc__, baselines.FrameDifference.__doc__]
     assert "gray-level" in spec.params["threshold"].help
     assert not any("grey" in text.lower() for text in texts)
+
+
+@pytest.mark.parametrize("name", ["mog2", "knn"])
+def test_a_fresh_opencv_engine_pickles_and_gives_the_masks_of_the_original(name):
+    import pickle
+
+    eng = create_engine(name, history=20)
+    twin = pickle.loads(pickle.dumps(eng))  # as a process pool sends it to its workers
+    cv2.setRNGSeed(0)
+    ours = [eng.apply(frame) for frame, _ in _moving_square_clip(n_static=10, n_moving=5)]
+    cv2.setRNGSeed(0)
+    theirs = [twin.apply(frame) for frame, _ in _moving_square_clip(n_static=10, n_moving=5)]
+    assert twin.subtractor is not eng.subtractor
+    assert twin.subtractor.getHistory() == 20
+    assert all(np.array_equal(a, b) for a, b in zip(ours, theirs))
+    assert any(a.any() for a in ours)  # (the comparison is not of empty masks)
+
+
+@pytest.mark.parametrize("name", ["mog2", "knn"])
+def test_an_opencv_engine_mid_video_refuses_pickling_in_words(name):
+    import copy
+    import pickle
+
+    eng = create_engine(name)
+    eng.apply(_background())
+    for dump in (pickle.dumps, copy.deepcopy):
+        with pytest.raises(TypeError, match=f"a {name} engine that has processed frames cannot "
+                                            "be pickled or copied"):
+            dump(eng)

@@ -2,9 +2,10 @@
 
 The scenes are written as ``bgsub samples`` writes them (JPEG frames, PNG ground truth) and
 read back as a user's run reads them. Each engine learns the first ``--learn`` frames at its own
-rate, then runs with ``learning_rate=0`` to the end. Scored with CDnet rules on every frame but the first (ground
-truth 255 positive, 0 negative). Also prints the share of the frame wrongly called foreground
-at a few frames, which shows a drifting or blurring model, and, for the moving-camera engines
+rate, then runs with ``learning_rate=0`` to the end. Scored with CDnet rules on every frame but
+the first (ground truth 255 positive, 0 negative). Also prints the share of the frame wrongly
+called foreground at a few frames, which shows a drifting or blurring model, and, for the
+moving-camera engines
 (``grbm``, ``compensated``), the model's misalignment there: how far (px, at the farthest frame
 corner) the affine map that registers the frame to the engine's background image
 (``get_background_image()``; OpenCV's ECC over the pixels the ground truth calls background)

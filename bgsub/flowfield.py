@@ -739,8 +739,8 @@ def _level(g1, g2, h_est, model, p, stride, rng, min_texture, max_patches, *,
                 if cache is not None:
                     cache[tkey] = tmap
             ci = centres.astype(np.intp)  # centres are integers for odd p
-            e = tmap[ci[:, 1], ci[:, 0]]
-            tex = (e / (e + np.float32(texture_scale))).astype(np.float32)
+            tex = _texture_weights(tmap[ci[:, 1], ci[:, 0]], centres, g1.shape,
+                                   texture_scale=texture_scale)
         pick = np.flatnonzero(tex >= min_texture)
         if max_patches is not None and len(pick) > max_patches:
             pick = pick[np.argsort(-tex[pick], kind="stable")[:max_patches]]
@@ -916,6 +916,38 @@ def _x_features(model: Any, x_pick: np.ndarray, cache: Optional[dict], key: Any)
     if cache is not None:
         cache[("xf", key)] = xf
     return xf
+
+
+#: Patches with less than this fraction of the level's largest structure-tensor eigenvalue are
+#: at the noise level when the stronger ones lie in one compact region (``_COMPACT``): see
+#: :func:`_texture_weights`. (OpenCV's corner detector, the `compensated` engine's front end,
+#: keeps corners of at least 1 % of the best one's quality.)
+WEAK_TEXTURE = 0.003
+_COMPACT = 1.0 / 3.0
+
+
+def _texture_weights(e: np.ndarray, centres: np.ndarray, shape: tuple, *,
+                     texture_scale: float) -> np.ndarray:
+    """Texture weights ``e / (e + texture_scale)`` of patches with smaller structure-tensor
+    eigenvalues ``e`` ((N,) float32) centred at ``centres`` ((N, 2) ``(x, y)``) in a level of
+    ``shape`` (H, W); ``(N,) float32`` in [0, 1).
+
+    When every patch with at least ``WEAK_TEXTURE`` of the largest ``e`` lies within a third of
+    the level's width and of its height (one textured object over a flat, noisy background),
+    the others get weight 0: their "texture" is sensor noise, which reads as random motions
+    that RANSAC can fit (a still camera over a noisy gray ramp was fitted motions of up to 13
+    px). The object's own motion is then the only one measured, and the engines take it for an
+    object's (``min_extent``). On the real set this never changes a mask (measured, issue 4).
+    """
+    tex = (e / (e + np.float32(texture_scale))).astype(np.float32)
+    if len(e) == 0:
+        return tex
+    strong = e >= np.float32(WEAK_TEXTURE) * e.max()
+    h, w = shape[:2]
+    spread = np.ptp(centres[strong], axis=0)
+    if spread[0] < _COMPACT * w and spread[1] < _COMPACT * h:
+        tex[~strong] = 0.0
+    return tex
 
 
 def _texture_map(gray: np.ndarray, p: int) -> np.ndarray:

@@ -581,6 +581,14 @@ def test_importing_the_cli_loads_no_numpy():
     assert out.split() == ["False", "False"]
 
 
+def _numbered_folder(folder, first: int, n: int = 6):
+    """``folder`` holding ``n`` frames of the test clip named ``in{first}.png`` onwards."""
+    folder.mkdir()
+    for k, frame in enumerate(_clip_frames(n)):
+        cv2.imwrite(str(folder / f"in{first + k:06d}.png"), frame)
+    return folder
+
+
 @pytest.mark.parametrize("first, start, noted", [
     (20, 0, True),   # a folder holding part of a sequence: in000020.jpg's mask is bin000001
     (1, 0, False),   # a whole CDnet input/ folder: the numbers agree
@@ -589,10 +597,7 @@ def test_importing_the_cli_loads_no_numpy():
 ])
 def test_a_note_when_mask_numbers_differ_from_the_file_names(tmp_path, capsys, first, start,
                                                              noted):
-    folder = tmp_path / "part"
-    folder.mkdir()
-    for k, frame in enumerate(_clip_frames(6)):
-        cv2.imwrite(str(folder / f"in{first + k:06d}.png"), frame)
+    folder = _numbered_folder(tmp_path / "part", first)
     code, err = _run(capsys, folder, "-o", tmp_path / "m", "-m", "_test_diff",
                      "--start", str(start))
     assert code == 0
@@ -638,10 +643,7 @@ def test_no_eval_range_is_suggested_for_masks_numbered_by_position(tmp_path, cap
     # A folder holding frames 20-25 of a sequence: --start counts its positions, which name no
     # ground-truth frame, so a `bgsub eval --start` hint would score the wrong frames (a whole
     # sequence, from frame 1, keeps the hint).
-    folder = tmp_path / "frames"
-    folder.mkdir()
-    for k, frame in enumerate(_clip_frames(6)):
-        cv2.imwrite(str(folder / f"in{first + k:06d}.png"), frame)
+    folder = _numbered_folder(tmp_path / "frames", first)
     code, err = _run(capsys, folder, "-o", tmp_path / "m.mkv", "-m", "_test_diff",
                      "--start", "2")
     assert code == 0

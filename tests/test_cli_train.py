@@ -65,6 +65,12 @@ def no_training(monkeypatch):
     ("dots-translation", ["--curriculum", "2:nan"], "--curriculum limits must be numbers >= 0"),
 ])
 def test_bad_option_is_one_line_before_training(tmp_path, capsys, no_training, data, extra, message):
+    _refused_before_training(tmp_path, capsys, data, extra, message)
+
+
+def _refused_before_training(tmp_path, capsys, data, extra, message):
+    """``bgsub train`` with ``--data data`` and ``extra`` stops with status 2 and the one-line
+    ``message`` before writing a model."""
     out = tmp_path / "m.npz"
     args = _tiny(out, *extra)
     args[args.index("--data") + 1] = data
@@ -266,12 +272,7 @@ def test_curriculum_within_the_epochs_says_nothing(tmp_path, capsys):
 ])
 def test_option_for_another_data_kind_is_refused(tmp_path, capsys, no_training, data, extra,
                                                  message):
-    out = tmp_path / "m.npz"
-    args = _tiny(out, *extra)
-    args[args.index("--data") + 1] = data
-    assert main(args) == 2
-    assert message in _one_error_line(capsys)
-    assert not out.exists()
+    _refused_before_training(tmp_path, capsys, data, extra, message)
 
 
 def _video_args(tmp_path, *extra):

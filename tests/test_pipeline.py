@@ -92,6 +92,21 @@ def test_moving_square_found_on_panning_background(kind):
     assert f > 0.7, f
 
 
+def _scored(eng, clip, *, skip):
+    """Run ``eng`` over ``clip`` ((frame, gt 0/255) pairs): F over the frames after the first
+    ``skip``, and the set of their ``last_status``."""
+    tp = fp = fn = 0
+    statuses = set()
+    for k, (frame, gt) in enumerate(clip):
+        p, g = eng.apply(frame) > 0, gt > 0
+        if k >= skip:
+            tp += np.count_nonzero(p & g)
+            fp += np.count_nonzero(p & ~g)
+            fn += np.count_nonzero(~p & g)
+            statuses.add(eng.last_status)
+    return 2 * tp / (2 * tp + fp + fn), statuses
+
+
 def _followed(n=12, pan=6.0, h=180, w=240):
     """A panning scene and an object the camera follows (it stays put in the image), there from
     the first frame; faintly textured, so its own pixels warped beside it look like "its
@@ -110,15 +125,7 @@ def _followed(n=12, pan=6.0, h=180, w=240):
 @pytest.mark.parametrize("name", ["compensated", "grbm"])
 def test_an_object_the_camera_follows_is_found(name):
     def f_measure(**params):
-        eng = _engine_with(name, **params)
-        tp = fp = fn = 0
-        for k, (frame, gt) in enumerate(_followed()):
-            p, g = eng.apply(frame) > 0, gt > 0
-            if k >= 2:
-                tp += np.count_nonzero(p & g)
-                fp += np.count_nonzero(p & ~g)
-                fn += np.count_nonzero(~p & g)
-        return 2 * tp / (2 * tp + fp + fn)
+        return _scored(_engine_with(name, **params), _followed(), skip=2)[0]
 
     with_cue, without = f_measure(), f_measure(still_cue=0.0)
     assert with_cue > 0.7, with_cue
@@ -146,17 +153,7 @@ def test_a_textured_object_over_a_blank_background_is_found(name):
     # Its motion is the only one measured; taken for the camera's, it would make the object
     # background (min_extent=0: the fit is never refused).
     def f_measure(**params):
-        eng = _engine_with(name, **params)
-        tp = fp = fn = 0
-        statuses = set()
-        for k, (frame, gt) in enumerate(_over_blank()):
-            p, g = eng.apply(frame) > 0, gt > 0
-            if k >= 3:
-                tp += np.count_nonzero(p & g)
-                fp += np.count_nonzero(p & ~g)
-                fn += np.count_nonzero(~p & g)
-                statuses.add(eng.last_status)
-        return 2 * tp / (2 * tp + fp + fn), statuses
+        return _scored(_engine_with(name, **params), _over_blank(), skip=3)
 
     f, statuses = f_measure()
     assert f > 0.7, f
@@ -170,17 +167,7 @@ def test_a_textured_object_over_a_noisy_ramp_is_found(name):
     # The ramp's noise has structure-tensor texture of its own: grbm read it as random motions
     # of up to 13 px, which RANSAC fitted as the camera's (F 0.24 on a longer clip). Noise-level
     # texture beside one compact textured region is not read (flowfield.WEAK_TEXTURE).
-    eng = _engine_with(name)
-    tp = fp = fn = 0
-    statuses = set()
-    for k, (frame, gt) in enumerate(_over_blank(n=20, ramp=True)):
-        p, g = eng.apply(frame) > 0, gt > 0
-        if k >= 3:
-            tp += np.count_nonzero(p & g)
-            fp += np.count_nonzero(p & ~g)
-            fn += np.count_nonzero(~p & g)
-            statuses.add(eng.last_status)
-    f = 2 * tp / (2 * tp + fp + fn)
+    f, statuses = _scored(_engine_with(name), _over_blank(n=20, ramp=True), skip=3)
     assert f > 0.7, (f, statuses)
     # No fitted motion was taken for the camera's (compensated also has frames with too few
     # tracks, another fallback to a still camera).

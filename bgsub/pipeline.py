@@ -15,7 +15,10 @@ isolates the motion estimator:
    the frames' total does;
    with ``learning_rate=0`` the fit is registered to the frozen model, so errors do not add up;
 4. the compensated background model is warped by it, compared with the frame, fused with the
-   flow-violation map and cleaned (:mod:`bgsub.foreground`), then updated.
+   flow-violation map and cleaned (:mod:`bgsub.foreground`), then updated. While the camera is
+   judged still (``still_model``: a never-warped sample model explains the frame and no fitted
+   motion stands out of the vectors' scatter), that sample model replaces it in the fusion:
+   water and foam defeat a mean-and-variance model, and their drift would be taken for a pan.
 
 Frames that cannot be processed normally (blank, textureless, a scene cut) never raise: they
 return an empty mask (or, for a scene cut, restart the model) and say why in ``last_status``.
@@ -23,6 +26,7 @@ return an empty mask (or, for a scene cut, restart the model) and say why in ``l
 
 from __future__ import annotations
 
+import collections
 import concurrent.futures
 import contextlib
 import dataclasses
@@ -41,6 +45,7 @@ from bgsub.flowio import draw_flow_arrows, flow_to_color
 from bgsub.foreground import (
     BackgroundParams,
     CompensatedBackground,
+    SampleBackground,
     flow_violation_map,
     fuse_masks,
     still_in_image_map,
@@ -49,7 +54,7 @@ from bgsub.global_motion import (MODELS, GlobalMotion, apply_homography, corner_
                                  fit_global_motion)
 
 __all__ = ["MovingCameraEngine", "GrbmEngine", "CompensatedEngine", "MotionResult",
-           "GRBM_TUNED", "limited_threads", "spans_frame"]
+           "GRBM_TUNED", "limited_threads", "spans_frame", "motion_snr"]
 
 
 # The narrowest working frame: a few 13x13 patches across, so a motion can be read at all.
@@ -198,6 +203,29 @@ def spans_frame(result: MotionResult, shape: tuple, min_extent: float) -> bool:
     return max(span_x, span_y) >= min_extent
 
 
+def motion_snr(result: MotionResult, *, min_vectors: int = 8) -> float:
+    """How far the fitted camera motion stands out of the motion vectors' disagreement with it:
+    the median displacement it predicts at the vectors' positions over the robust standard
+    deviation (1.4826 MAD) of their residuals; 0 without a fit or with fewer than
+    ``min_vectors`` usable vectors.
+
+    A camera moves the whole background rigidly: its motion is many times the residuals
+    (panning and shaking cameras in the real set and the generated scenes: medians 9-100). Water
+    or foam seen by a still camera drifts coherently enough for RANSAC to fit a "motion", but
+    its vectors scatter about it by about as much (UCSD birds, bottle and surf: medians 0.5-2.2).
+    """
+    if not result.motion.ok:
+        return 0.0
+    usable = result.weights > 0
+    if np.count_nonzero(usable) < min_vectors:
+        return 0.0
+    pts = result.points[usable].astype(np.float64)
+    predicted = apply_homography(result.motion.matrix, pts) - pts
+    residual = np.linalg.norm(result.disp[usable] - predicted, axis=1)
+    scatter = 1.4826 * float(np.median(residual))
+    return float(np.median(np.linalg.norm(predicted, axis=1))) / max(scatter, 1e-3)
+
+
 def _translation(dx: float, dy: float) -> np.ndarray:
     return np.array([[1.0, 0.0, dx], [0.0, 1.0, dy], [0.0, 0.0, 1.0]])
 
@@ -271,6 +299,14 @@ class MovingCameraEngine(Engine):
     still_cue : float
         Weight of :func:`still_in_image_map` (an object the camera follows stays put in the
         image); the violation map is the larger of the two (0 = flow violation only).
+    still_model, still_snr, still_window : the still-camera switch. A
+        :class:`SampleBackground` that is never warped runs beside the compensated model; the
+        camera is taken as still, and that model's score used, while over the last
+        ``still_window`` frames (medians) it calls less than ``still_model`` of the frame
+        foreground and the fitted motion is less than ``still_snr`` times the robust scatter
+        of the motion vectors about it (:func:`motion_snr`). Both are needed: a pan makes the
+        still model fail, and a shaking camera's motion is rigid however small (``still_model
+        = 0``: off).
     threads : int
         OpenBLAS and OpenCV worker threads while a frame is processed (:class:`limited_threads`;
         0 = leave them as configured).
@@ -283,6 +319,8 @@ class MovingCameraEngine(Engine):
     ----------
     last_status : str
         ``"ok"`` or ``"fallback: <reason>"`` for the last frame.
+    camera_still : bool
+        Whether the last frame was taken as seen by a still camera (``still_model``).
     """
 
     name = "moving-camera"
@@ -312,6 +350,9 @@ class MovingCameraEngine(Engine):
         learning_rate: float = -1.0,
         min_extent: float = 0.33,
         still_below: float = 0.25,
+        still_model: float = 0.15,
+        still_snr: float = 4.0,
+        still_window: int = 9,
     ) -> None:
         if 0 < work_width < MIN_WORK_WIDTH:
             # Refused here, before any output is opened, rather than at the first frame.
@@ -339,6 +380,13 @@ class MovingCameraEngine(Engine):
         self.learning_rate = float(learning_rate)
         self.min_extent = float(min_extent)
         self.still_below = float(still_below)
+        self.still_model = float(still_model)
+        self.still_snr = float(still_snr)
+        self.still_bg = SampleBackground() if self.still_model > 0 else None
+        # (fraction the still model calls foreground, motion_snr) of the last frames.
+        self.still_window = max(int(still_window), 1)
+        self._still_votes: collections.deque = collections.deque(maxlen=self.still_window)
+        self.camera_still = False
         self.last_status = "ok"
         self._worker: Optional[concurrent.futures.ThreadPoolExecutor] = None
         # The previous frame as the front end keeps it (see _frame_data), working size.
@@ -488,12 +536,15 @@ class MovingCameraEngine(Engine):
             if rate == 0.0:
                 self._forget_unseen(applied)
             score = self.bg.score(work)
+            still_score = self.still_bg.score(work) if self.still_bg is not None else None
         if self._is_scene_cut(score, result):
             self._restart(work, gray, cur)
             self.last_status = "fallback: scene cut"
             return empty
         self._last_matrix = applied
         violation = violation[0]
+        if still_score is not None and self._judge_still(still_score, result):
+            score = still_score
         mask = fuse_masks(score, violation, flow_boost=self.flow_boost, flow_damp=self.flow_damp,
                           threshold=self.threshold, min_area=self.min_area, close=self.close_size,
                           fill_holes=self.fill_holes)
@@ -642,6 +693,15 @@ class MovingCameraEngine(Engine):
             np.maximum(v, still, out=v)
         return v
 
+    def _judge_still(self, still_score: np.ndarray, result: MotionResult) -> bool:
+        """Whether the camera is taken as still for this frame (``camera_still``), given the
+        still model's ``(h, w) float32`` score of it and the frame's motion ``result``."""
+        fraction = float(np.count_nonzero(still_score > 1.0)) / still_score.size
+        self._still_votes.append((fraction, motion_snr(result)))
+        fractions, snrs = np.median(np.array(self._still_votes), axis=0)
+        self.camera_still = bool(fractions < self.still_model and snrs < self.still_snr)
+        return self.camera_still
+
     def _is_scene_cut(self, score: np.ndarray, result: MotionResult) -> bool:
         """After compensation most of the frame still differs (a new shot) and the motion
         estimate has little support (a new shot has no consistent motion), or nearly all of it
@@ -668,6 +728,8 @@ class MovingCameraEngine(Engine):
             work, learn_slowly, rate = self._pending
             self._pending = None
             self.bg.update(work, learn_slowly, rate)
+            if self.still_bg is not None:
+                self.still_bg.update(work, learn_slowly, rate)
 
     @contextlib.contextmanager
     def _alongside(self, *jobs: Callable[[], None]) -> Iterator[None]:
@@ -704,6 +766,10 @@ class MovingCameraEngine(Engine):
         self._pending = None
         self.bg.reset(work)
         self.bg.update(work)
+        if self.still_bg is not None:
+            self.still_bg.reset(work)
+            self._still_votes.clear()
+            self.camera_still = False
         self._prev = cur if cur is not None else self._frame_data(gray)
         self._prev_gray = gray
         self._prev_motion = None
@@ -737,7 +803,8 @@ class MovingCameraEngine(Engine):
         """The background model's mean in the current frame's coordinates, at the input size
         (like the input: gray or BGR uint8), or None before the first frame."""
         self._finish_update()
-        img = self.bg.background_image()
+        model = self.still_bg if self.camera_still else self.bg
+        img = model.background_image()
         if img is None or self._in_shape is None:
             return img
         return self._to_input_image(img)
@@ -1079,6 +1146,14 @@ _COMMON = {
                               "(working px) is held back and added to the next frame's: a still "
                               "camera's sub-pixel reading noise would resample (blur) the model "
                               "every frame (0 = warp every frame)", low=0),
+    "still_model": Param(0.15, "take the camera as still, and use a never-warped sample "
+                               "background model (water, foam, leaves), while that model calls "
+                               "less than this fraction of the frame foreground ... (0 = off)",
+                         low=0, high=1),
+    "still_snr": Param(4.0, "... and the fitted camera motion is less than this many times the "
+                            "scatter of the motion vectors about it (no rigid motion stands "
+                            "out)", low=0),
+    "still_window": Param(9, "... both as medians over this many frames", low=1),
     "still_cue": Param(1.0, "weight of the evidence that a pixel stays put in the image while "
                             "the camera moves (an object the camera follows; 0 = off)",
                        low=0, high=1),

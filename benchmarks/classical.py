@@ -11,7 +11,7 @@ What it does:
    ``bgsub samples DIR --seed S``, default scene parameters) for every category and seed into
    ``--out`` (outside the repository).
 2. Runs each engine with its default parameters over each scene's ``input/`` JPEG frames and
-   scores the masks with :func:`bgsub.evaluation.evaluate_sequence` (temporal ROI; label 170 is
+   scores the masks with :func:`bgsub.evaluation.cdnet.evaluate_sequence` (temporal ROI; label 170 is
    ignored). Per-category F is the mean over seeds (CDnet averaging). A second, diagnostic
    scoring leaves the first ``--warmup`` frames out, to separate start-up effects (objects
    already in view in frame 1 are learnt as background) from the camera's motion.
@@ -43,9 +43,9 @@ import cv2
 import numpy as np
 
 from bgsub.engines import create_engine
-from bgsub.evaluation import DatasetResult, SequenceResult, evaluate_sequence
+from bgsub.evaluation.cdnet import DatasetResult, SequenceResult, evaluate_sequence
 from bgsub.samples import CATEGORIES, SceneSpec, generate_scene
-from bgsub.sources import open_source
+from bgsub.io.sources import open_source
 
 ENGINES = ("mog2", "knn", "framediff")
 REAL_TRAFFIC = Path(__file__).resolve().parents[2] / "shared" / "data" / "real" / \

@@ -15,9 +15,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from bgsub.flowfield import estimate_flow
-from bgsub.flowio import read_flo
-from bgsub.rbm import load_model
+from bgsub.motion.flowfield import estimate_flow
+from bgsub.io.flowio import read_flo
+from bgsub.model.rbm import load_model
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "flow"
 

@@ -31,7 +31,7 @@ import numpy as np
 
 from bgsub.engines import create_engine, parse_params
 from bgsub.samples import SceneSpec, generate_scene
-from bgsub.sources import open_source
+from bgsub.io.sources import open_source
 
 
 def misalignment(background: np.ndarray, frame: np.ndarray, valid: np.ndarray) -> float:

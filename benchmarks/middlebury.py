@@ -5,20 +5,20 @@ Two test sets, same protocol:
 * **Middlebury RubberWhale** (``../shared/data/flow/Middlebury_RubberWhale``: frame10 -> frame11,
   ground truth flow10.flo; skipped with a note when the folder is absent);
 * **held-out photographs**: scikit-image photos never used for training
-  (:data:`bgsub.imagedata.TEST_IMAGES`), each moved globally by a random sub-pixel shift of up
-  to ``--max-shift`` px plus a small rotation/zoom (:func:`bgsub.imagedata.warped_frame_pair`).
+  (:data:`bgsub.model.imagedata.TEST_IMAGES`), each moved globally by a random sub-pixel shift of up
+  to ``--max-shift`` px plus a small rotation/zoom (:func:`bgsub.model.imagedata.warped_frame_pair`).
 
 Protocol: 13x13 patches on a grid (stride 4) of frame 1; the ground-truth displacement of a
 patch is the ground-truth flow at its centre pixel. A patch counts when its ground truth is
-known and the patch is *textured*: :func:`bgsub.tiling.texture_score` >= ``--texture`` (default
+known and the patch is *textured*: :func:`bgsub.model.tiling.texture_score` >= ``--texture`` (default
 0.1, i.e. the smaller structure-tensor eigenvalue averaged over the patch is >= 2.2e-4 in
 gray-per-pixel^2 units, the top ~30% of RubberWhale's patches; flat patches and single straight
 edges fall below). Results are also
 given for all non-flat patches (RMS contrast >= 0.02). Both methods see the same patches:
 
 * the model: the patch pair at the same place in both frames, ``model.prepare`` and
-  :func:`bgsub.readout.patch_displacements` (``max_disp = r``, sub-pixel peak);
-* NCC: :func:`bgsub.blockmatch.ncc_block_match` over the same ``[-r, r]^2`` integer range.
+  :func:`bgsub.model.readout.patch_displacements` (``max_disp = r``, sub-pixel peak);
+* NCC: :func:`bgsub.motion.blockmatch.ncc_block_match` over the same ``[-r, r]^2`` integer range.
 
 Reported: the fraction within 1 px (endpoint error <= 1) and the mean endpoint error.
 
@@ -40,11 +40,11 @@ from typing import Dict, List, Optional
 
 import numpy as np
 
-from bgsub import readout
-from bgsub.blockmatch import ncc_block_match
-from bgsub.flowio import endpoint_error, read_flo
-from bgsub.rbm import GatedRBM, load_model
-from bgsub.tiling import extract_patch_pairs, texture_score, to_gray
+from bgsub.model import readout
+from bgsub.motion.blockmatch import ncc_block_match
+from bgsub.io.flowio import endpoint_error, read_flo
+from bgsub.model.rbm import GatedRBM, load_model
+from bgsub.model.tiling import extract_patch_pairs, texture_score, to_gray
 
 MIDDLEBURY = Path(__file__).resolve().parents[2] / "shared" / "data" / "flow" / "Middlebury_RubberWhale"
 
@@ -121,7 +121,7 @@ def middlebury_pairs(folder: Path = MIDDLEBURY) -> Optional[List[tuple]]:
 def photo_pairs(*, max_shift: float = 3.0, per_image: int = 4, seed: int = 2024) -> List[tuple]:
     """Held-out photos, each moved globally ``per_image`` times (sub-pixel shift, small
     rotation/zoom)."""
-    from bgsub.imagedata import TEST_IMAGES, load_photos, warped_frame_pair
+    from bgsub.model.imagedata import TEST_IMAGES, load_photos, warped_frame_pair
 
     rng = np.random.default_rng(seed)
     pairs = []
@@ -151,7 +151,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     parser.add_argument("--json", type=Path, default=None, help="also write the results here")
     args = parser.parse_args(argv)
 
-    from bgsub.flowfield import model_range
+    from bgsub.motion.flowfield import model_range
 
     model = load_model(args.model)
     r = args.max_disp if args.max_disp is not None else model_range(model)

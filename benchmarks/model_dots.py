@@ -28,9 +28,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from bgsub.rbm import load_model  # noqa: E402
-from bgsub.readout import max_flow_field, patch_displacements  # noqa: E402
-from bgsub.training import (  # noqa: E402
+from bgsub.model.rbm import load_model  # noqa: E402
+from bgsub.model.readout import max_flow_field, patch_displacements  # noqa: E402
+from bgsub.model.training import (  # noqa: E402
     FixedPairs,
     TrainConfig,
     TranslatedDots,

@@ -84,9 +84,9 @@ def run_sequence(method: str, params: dict, seq: Path, *, start_before: int = 0)
 
 
 def _count(mask: np.ndarray, gt: np.ndarray) -> tuple:
-    """(tp, fp, fn, tn) of one frame with CDnet 2014 labels (bgsub.evaluation when present)."""
+    """(tp, fp, fn, tn) of one frame with CDnet 2014 labels (bgsub.evaluation.cdnet when present)."""
     try:
-        from bgsub.evaluation import count_frame
+        from bgsub.evaluation.cdnet import count_frame
     except ImportError:  # the evaluation module is optional for this script
         pred = mask > 127
         pos = gt == 255
@@ -104,7 +104,7 @@ def f_measure(tp: int, fp: int, fn: int) -> float:
 def run_generated(method: str, params: dict, seeds, *, n_frames: int = 60) -> None:
     """F per category over ``seeds`` and the median corner error of the camera motion each
     frame applied (``engine.last_motion``)."""
-    from bgsub.global_motion import corner_error
+    from bgsub.motion.global_motion import corner_error
     from bgsub.samples import CATEGORIES, SceneSpec, render_frames
 
     means = []

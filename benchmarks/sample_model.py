@@ -6,7 +6,7 @@ pixel keeps N past values and is background when at least ``min_matches`` of the
 motion, conservative random update with neighbour diffusion) in for `CompensatedBackground`
 and runs `benchmarks/pipeline_real.py` with it, to measure whether the background model is what
 keeps UCSD below its bar (see docs/BENCHMARKS.md, tenth stop). Kept as it was to reproduce
-those figures: the engines' own sample model, :class:`bgsub.foreground.SampleBackground`
+those figures: the engines' own sample model, :class:`bgsub.background.foreground.SampleBackground`
 (eleventh stop), is never warped and is used only while the camera is judged still.
 
 Usage (minutes; one thread)::
@@ -26,12 +26,12 @@ from typing import Optional
 import cv2
 import numpy as np
 
-import bgsub.pipeline
-from bgsub.foreground import BackgroundParams, _warp
+import bgsub.engines.moving
+from bgsub.background.foreground import BackgroundParams, _warp
 
 
 class SampleBackground:
-    """ViBe-style model with :class:`bgsub.foreground.CompensatedBackground`'s interface."""
+    """ViBe-style model with :class:`bgsub.background.foreground.CompensatedBackground`'s interface."""
 
     def __init__(self, params: Optional[BackgroundParams] = None, *, samples: int = 20,
                  radius: float = 20.0, min_matches: int = 2, subsample: int = 16,
@@ -132,7 +132,7 @@ def main() -> None:
     a = ap.parse_args(argv[:split])
     kw = dict(samples=a.samples, radius=a.radius, min_matches=a.min_matches,
               subsample=a.subsample)
-    bgsub.pipeline.CompensatedBackground = lambda params=None: SampleBackground(params, **kw)
+    bgsub.engines.moving.CompensatedBackground = lambda params=None: SampleBackground(params, **kw)
     script = Path(__file__).with_name("pipeline_real.py")
     sys.argv = [str(script)] + argv[split + 1:]
     runpy.run_path(str(script), run_name="__main__")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 SHARED_DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
@@ -31,3 +32,43 @@ def bgsub_error(capsys):
         return err
 
     return run
+
+
+class OracleMatcher:
+    """Exhaustive SSD block matching over integer shifts within +-max_disp (test double)."""
+
+    patch_size = 13
+    meta = {"max_disp": 3}
+
+    def patch_motion(self, x_raw, y_raw, *, max_disp):
+        p = self.patch_size
+        x = x_raw.reshape(-1, p, p)
+        y = y_raw.reshape(-1, p, p)
+        best = np.full(len(x), np.inf)
+        disp = np.zeros((len(x), 2), np.float32)
+        for dy in range(-max_disp, max_disp + 1):
+            for dx in range(-max_disp, max_disp + 1):
+                xs = x[:, max(0, -dy):p - max(0, dy), max(0, -dx):p - max(0, dx)]
+                ys = y[:, max(0, dy):p - max(0, -dy), max(0, dx):p - max(0, -dx)]
+                err = ((xs - ys) ** 2).mean(axis=(1, 2))
+                better = err < best
+                best[better] = err[better]
+                disp[better] = (dx, dy)
+        return disp, np.ones(len(x), np.float32), np.zeros(len(x), bool)
+
+
+_NATURAL = {}
+
+
+def model_path():
+    """grbm needs a model file: the shipped natural model when installed, else skip."""
+    from bgsub.errors import ModelError
+    from bgsub.model.rbm import load_model
+
+    if "m" not in _NATURAL:
+        try:
+            load_model("natural")
+            _NATURAL["m"] = "natural"
+        except ModelError as err:
+            pytest.skip(f"shipped natural model not installed: {err}")
+    return _NATURAL["m"]

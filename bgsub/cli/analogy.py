@@ -11,7 +11,7 @@ from bgsub.errors import InputError, OutputError
 # --zoom enlarges a patch-sized result for viewing (13 px x 64 = 832 px); far more only costs
 # memory (--zoom 100000 asked for terabytes). The side limit also bounds zoomed large images.
 MAX_ZOOM = 64
-MAX_OUTPUT_SIDE = 16384  # bgsub.sources.MAX_SIDE (not imported: it would load cv2 for --help)
+MAX_OUTPUT_SIDE = 16384  # bgsub.io.sources.MAX_SIDE (not imported: it would load cv2 for --help)
 
 _DESCRIPTION = """\
 Make an analogy with a gated RBM: infer the mapping units from the pair (X, Y) -- how X moved
@@ -67,7 +67,7 @@ def _read_gray(path: str):
     import cv2
     import numpy as np
 
-    from bgsub.flowio import check_image_file
+    from bgsub.io.flowio import check_image_file
 
     check_image_file(path)
     image = cv2.imread(path, cv2.IMREAD_GRAYSCALE)
@@ -92,7 +92,7 @@ def _check_output(args: argparse.Namespace) -> None:
     """Refuse an output that would replace an input or cannot be written, before any work."""
     import cv2
 
-    from bgsub.sinks import check_file_output
+    from bgsub.io.sinks import check_file_output
 
     check_distinct([args.x, args.y, args.x2] + model_files(args.model), [("-o", args.output)])
     check_file_output(args.output, overwrite=args.overwrite)
@@ -118,9 +118,9 @@ def run(args: argparse.Namespace) -> int:
     import cv2
     import numpy as np
 
-    from bgsub.flowio import write_image
-    from bgsub.rbm import load_model
-    from bgsub.readout import analogy_images
+    from bgsub.io.flowio import write_image
+    from bgsub.model.rbm import load_model
+    from bgsub.model.readout import analogy_images
 
     _check_options(args)
     _check_output(args)

@@ -66,7 +66,7 @@ def parse_size(text: str) -> Tuple[int, int]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bgsub.bench import bench_methods
+    from bgsub.evaluation.bench import bench_methods
     from bgsub.cli.common import progress
     from bgsub.engines import available_engines
 

@@ -13,7 +13,7 @@ from bgsub.errors import OutputError
 
 
 def add_source_options(parser: argparse.ArgumentParser) -> None:
-    """Frame range and resizing options, passed to :func:`bgsub.sources.open_source`."""
+    """Frame range and resizing options, passed to :func:`bgsub.io.sources.open_source`."""
     group = parser.add_argument_group("input frames")
     group.add_argument("--start", type=int, default=0, metavar="N",
                        help="first frame to read, 0-based (default: 0)")
@@ -61,7 +61,7 @@ def note(message: str, *, quiet: bool = False) -> None:
 
 def warn(message: str) -> None:
     """A one-line ``bgsub: warning: ...`` on stderr: the result may not be what was meant.
-    Printed with ``--quiet`` too (as the lossy-codec warning of :mod:`bgsub.sinks` is)."""
+    Printed with ``--quiet`` too (as the lossy-codec warning of :mod:`bgsub.io.sinks` is)."""
     print(f"bgsub: warning: {message}", file=sys.stderr)
 
 
@@ -72,7 +72,7 @@ def check_distinct(inputs: Iterable[Any], outputs: List[Tuple[str, Any]], *,
 
     ``outputs`` pairs each option (``"-o"``, ``"--vis"``) with its path; unset paths (None or
     "") are skipped. ``input_folders`` are resolved folders whose images are the input
-    (:attr:`bgsub.sources.FrameSource.folders`): masks written there would be read as frames
+    (:attr:`bgsub.io.sources.FrameSource.folders`): masks written there would be read as frames
     the next time. Even ``--overwrite`` must not replace or add to what the command is reading.
     """
     sources = {Path(p).resolve() for p in inputs if p}
@@ -99,7 +99,7 @@ def check_distinct(inputs: Iterable[Any], outputs: List[Tuple[str, Any]], *,
 def model_files(model: str) -> List[str]:
     """``[model]`` when ``--model`` names a file, ``[]`` for a shipped model's name: the inputs
     :func:`check_distinct` must protect."""
-    from bgsub.rbm import SHIPPED_MODELS
+    from bgsub.model.rbm import SHIPPED_MODELS
 
     return [] if model in SHIPPED_MODELS else [model]
 
@@ -130,7 +130,7 @@ def warn_if_binary_model(model: Any, image: Any, *, what: str = "") -> None:
 
 
 def warn_if_binary_model_on_source(model: Any, source: Any, *, what: str = "") -> None:
-    """:func:`warn_if_binary_model` for the first frame of a :class:`bgsub.sources.FrameSource`,
+    """:func:`warn_if_binary_model` for the first frame of a :class:`bgsub.io.sources.FrameSource`,
     read in a pass of its own, and only when the model is a binary one."""
     if not is_binary_model(model):
         return

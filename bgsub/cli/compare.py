@@ -135,7 +135,7 @@ def parse_method_params(pairs: List[str], methods: List[str]) -> Dict[str, Dict[
 
 
 def run(args: argparse.Namespace) -> int:
-    from bgsub.compare import compare_methods
+    from bgsub.evaluation.compare import compare_methods
     from bgsub.engines import available_engines, get_engine_spec
 
     if args.methods is not None:  # -m "" is a mistake, not "all"

@@ -10,7 +10,7 @@ from typing import Any
 
 from bgsub.cli.common import warn
 from bgsub.errors import InputError, OutputError
-from bgsub.sinks import check_file_output
+from bgsub.io.sinks import check_file_output
 
 _DESCRIPTION = """\
 Score predicted foreground masks against CDnet 2014 ground truth: Recall, Specificity, FPR,
@@ -114,7 +114,7 @@ def register(subparsers: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bgsub.evaluation import evaluate, format_csv, format_table
+    from bgsub.evaluation.cdnet import evaluate, format_csv, format_table
 
     if args.json and args.csv == "-":
         raise InputError("--json and --csv - both print to stdout: choose one")

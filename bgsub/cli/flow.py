@@ -18,7 +18,7 @@ _DESCRIPTION = """\
 Estimate the motion between two images with a gated RBM (default: the shipped `natural` model,
 trained on photographs) and write it as a Middlebury .flo file: one (u, v) vector per pixel of
 FRAME1 at its full size, u to the right and v down, "unknown" where no textured patch covers the
-pixel (flat areas). Read it back with bgsub.flowio.read_flo or any Middlebury tool.
+pixel (flat areas). Read it back with bgsub.io.flowio.read_flo or any Middlebury tool.
 Motion larger than the model's few pixels is handled coarse to fine (an image pyramid whose
 camera motion pre-warps the next level).
 
@@ -84,7 +84,7 @@ def register(subparsers: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bgsub.rbm import load_model
+    from bgsub.model.rbm import load_model
 
     _check_options(args)
     if args.frame2 is None:
@@ -166,7 +166,7 @@ def _search_for(shape: Tuple[int, int], model: Any, args: argparse.Namespace) ->
     """The grid of coarsest-level starts that lets the pyramid a frame of ``shape`` (H, W)
     allows read --max-motion: small frames allow fewer levels than it needs (0 when the levels
     reach it alone, or with --levels)."""
-    from bgsub.flowfield import model_range, pyramid_reach
+    from bgsub.motion.flowfield import model_range, pyramid_reach
 
     if args.levels is not None:
         return 0
@@ -184,7 +184,7 @@ def _search_for(shape: Tuple[int, int], model: Any, args: argparse.Namespace) ->
 
 def _estimate(frame1: np.ndarray, frame2: np.ndarray, model: Any, args: argparse.Namespace,
               prior: Optional[np.ndarray] = None):
-    from bgsub.flowfield import estimate_flow
+    from bgsub.motion.flowfield import estimate_flow
 
     search = _search_for(frame1.shape[:2], model, args)  # (says it in CLI words: warn_range off)
     return estimate_flow(frame1, frame2, model=model, stride=args.stride, levels=args.levels,
@@ -193,7 +193,7 @@ def _estimate(frame1: np.ndarray, frame2: np.ndarray, model: Any, args: argparse
 
 
 def _check_pair_outputs(args: argparse.Namespace) -> None:
-    from bgsub.sinks import check_file_output
+    from bgsub.io.sinks import check_file_output
 
     check_distinct(_input_paths(args), [("-o", args.output), ("--vis", args.vis)])
     out = Path(args.output)
@@ -209,7 +209,7 @@ def _check_pair_outputs(args: argparse.Namespace) -> None:
 
 
 def _run_pair(args: argparse.Namespace, model: Any) -> int:
-    from bgsub.flowio import flow_picture, read_image, write_flo, write_image
+    from bgsub.io.flowio import flow_picture, read_image, write_flo, write_image
 
     frame1, frame2 = read_image(args.input), read_image(args.frame2)
     h, w = frame1.shape[:2]
@@ -238,11 +238,11 @@ def _run_pair(args: argparse.Namespace, model: Any) -> int:
 
 
 def _check_video_output(args: argparse.Namespace) -> None:
-    from bgsub.sinks import check_video_output
+    from bgsub.io.sinks import check_video_output
 
     check_distinct(_input_paths(args), [("-o", args.output)])
     if Path(args.output).suffix.lower() == ".flo":
-        from bgsub.sources import IMAGE_EXTENSIONS
+        from bgsub.io.sources import IMAGE_EXTENSIONS
 
         if Path(args.input).suffix.lower() in IMAGE_EXTENSIONS:
             raise InputError(f"{args.input} is one image: a .flo file needs the pair "
@@ -253,9 +253,9 @@ def _check_video_output(args: argparse.Namespace) -> None:
 
 
 def _run_video(args: argparse.Namespace, model: Any) -> int:
-    from bgsub.flowio import flow_picture
-    from bgsub.sinks import VideoSink
-    from bgsub.sources import open_source
+    from bgsub.io.flowio import flow_picture
+    from bgsub.io.sinks import VideoSink
+    from bgsub.io.sources import open_source
 
     with open_source(args.input, **source_kwargs(args)) as source:
         info = source.info

@@ -1,7 +1,7 @@
 """``bgsub run``: foreground masks of a video, an image folder or a glob pattern.
 
-A thin layer: :func:`bgsub.sources.open_source` reads, an engine from :mod:`bgsub.engines` makes
-the masks, :func:`bgsub.sinks.process` writes them.
+A thin layer: :func:`bgsub.io.sources.open_source` reads, an engine from :mod:`bgsub.engines` makes
+the masks, :func:`bgsub.io.sinks.process` writes them.
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from typing import Any, List, Optional
 from bgsub import engines
 from bgsub.cli import common
 from bgsub.errors import InputError
-from bgsub.evaluation import VideoFrames
-from bgsub.sinks import (
+from bgsub.evaluation.cdnet import VideoFrames
+from bgsub.io.sinks import (
     MotionSink,
     RunStats,
     VideoSink,
@@ -28,7 +28,7 @@ from bgsub.sinks import (
     open_mask_sink,
     process,
 )
-from bgsub.sources import FrameSource, VideoInfo, open_source
+from bgsub.io.sources import FrameSource, VideoInfo, open_source
 
 _DESCRIPTION = """\
 Find the moving objects in a video and write one foreground mask per frame (0 = background,

@@ -202,9 +202,9 @@ def _fit_curriculum(curriculum: Any, args: argparse.Namespace, kind: str, *, max
 
 def _imagedata():
     try:
-        import bgsub.imagedata as imagedata
+        import bgsub.model.imagedata as imagedata
     except ImportError as err:
-        raise InputError(f"training on images needs bgsub.imagedata, which cannot be imported ({err})") from None
+        raise InputError(f"training on images needs bgsub.model.imagedata, which cannot be imported ({err})") from None
     return imagedata
 
 
@@ -331,7 +331,7 @@ def _data_kind(data: List[str]) -> str:
 def _check_output(args: argparse.Namespace, kind: str) -> Path:
     """The model path, checked before any work: a file (not a folder) whose folder can be
     written, new unless ``--overwrite``, and not one of the videos being read."""
-    from bgsub.sinks import check_file_output  # the output check of eval, flow and analogy
+    from bgsub.io.sinks import check_file_output  # the output check of eval, flow and analogy
 
     out = Path(args.output)
     # A trailing slash means a folder even if it does not exist yet (Path would drop it).
@@ -372,8 +372,8 @@ def _save_interrupted(model: Any, out: Path, when: str, what: str = "the model s
 
 
 def run(args: argparse.Namespace) -> int:
-    from bgsub import training
-    from bgsub.training import Curriculum, TrainConfig
+    from bgsub.model import training
+    from bgsub.model.training import Curriculum, TrainConfig
 
     # Every check first: a mistake must not cost a training run.
     kind = _data_kind(args.data)
@@ -466,7 +466,7 @@ def run(args: argparse.Namespace) -> int:
 def _source(kind: str, args: argparse.Namespace, *, max_shift: float, curriculum: Any,
             blur: Tuple[float, ...]) -> Tuple[Any, str]:
     """The pair source for ``kind`` and a one-line description of it for the model's meta."""
-    from bgsub import training
+    from bgsub.model import training
 
     p = args.patch_size
     if kind == "dots-translation":
@@ -491,8 +491,8 @@ def _source(kind: str, args: argparse.Namespace, *, max_shift: float, curriculum
 
 
 def _train(source: Any, config: Any, description: str, *, quiet: bool) -> Any:
-    """:func:`bgsub.training.train` with a progress bar, closed before any message is printed."""
-    from bgsub import training
+    """:func:`bgsub.model.training.train` with a progress bar, closed before any message is printed."""
+    from bgsub.model import training
 
     bar = _progress(config.epochs, quiet=quiet)
 
@@ -509,7 +509,7 @@ def _train(source: Any, config: Any, description: str, *, quiet: bool) -> Any:
 
 
 def _evaluate(kind: str, model: Any, *, max_shift: float, max_angle: float, n: int) -> Dict[str, float]:
-    from bgsub import training
+    from bgsub.model import training
 
     if n <= 0:
         return {}

@@ -1,0 +1,390 @@
+"""Background-subtraction engines behind one interface, and the registry that names them.
+
+Every engine has the shape of OpenCV's ``cv2.BackgroundSubtractor``, so a loop written for
+``cv2.createBackgroundSubtractorMOG2()`` takes any bgsub engine unchanged::
+
+    engine = bgsub.create_engine("grbm")
+    for frame in frames:                      # (H, W, 3) or (H, W) uint8
+        mask = engine.apply(frame)            # (H, W) uint8, 0 = background, 255 = foreground
+
+Engines register themselves with :func:`register_engine`; the CLI (``bgsub run --method``,
+``bgsub methods``) only ever goes through this registry, so a new engine needs no CLI change.
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib
+import math
+import numbers
+import threading
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+from typing import Any, Callable, Dict, Iterable, List, Optional
+
+import cv2
+import numpy as np
+
+from bgsub.errors import InputError, describe_shape
+
+# Modules whose import registers the built-in engines (imported on first use of the registry,
+# so `import bgsub` stays light).
+_BUILTIN_MODULES = ("bgsub.engines.baselines", "bgsub.engines.moving")
+
+#: The engine ``bgsub run`` (and :func:`create_engine`) uses when no method is named.
+DEFAULT_METHOD = "grbm"
+
+
+def opencv_keywords(apply: Callable[..., np.ndarray]) -> Callable[..., np.ndarray]:
+    """Decorate an engine's ``apply`` so it also takes OpenCV's keyword spelling:
+    ``apply(frame, learningRate=0.01)`` as in code written for ``cv2.BackgroundSubtractor``."""
+
+    @functools.wraps(apply)
+    def wrapper(self: "Engine", image: np.ndarray, fgmask: Optional[np.ndarray] = None,
+                learning_rate: float = -1.0, *,
+                learningRate: Optional[float] = None) -> np.ndarray:  # noqa: N803 (OpenCV's)
+        if learningRate is not None:
+            if learning_rate != -1.0:
+                raise InputError("give learning_rate or OpenCV's learningRate, not both")
+            learning_rate = learningRate
+        return apply(self, image, fgmask, learning_rate)
+
+    if wrapper.__doc__ is None:
+        wrapper.__doc__ = Engine.apply.__doc__  # help(engine.apply) shows the shared contract
+    return wrapper
+
+
+def check_frame(image: Any, *, shape: Optional[tuple] = None) -> np.ndarray:
+    """Validate one input frame of an engine; the checks every engine's ``apply`` starts with.
+
+    Parameters
+    ----------
+    image : (H, W), (H, W, 1), (H, W, 3) or (H, W, 4) uint8 array
+    shape : (H, W) or (H, W, 3), optional
+        The shape of the stream's earlier frames as this function returned them: a frame of
+        another size, or gray after colour (or colour after gray), is refused (an engine's
+        model is of one size and kind; a new stream needs a new engine).
+
+    Returns
+    -------
+    ``image``, its ``(H, W)`` view when it has one channel, or its BGR copy when it has four
+    (an alpha channel, as ``cv2.IMREAD_UNCHANGED`` reads a PNG).
+    """
+    if not isinstance(image, np.ndarray) or image.ndim == 0:
+        what = ("a single number" if isinstance(image, (np.generic, np.ndarray))
+                else type(image).__name__)
+        raise InputError(f"engine input must be a uint8 numpy image, not {what}")
+    if image.dtype != np.uint8:
+        hint = (": scale it to 8 bits first, e.g. (frame >> 8).astype(np.uint8)"
+                if image.dtype == np.uint16 else "")
+        raise InputError(f"engine input must be a uint8 image, not {image.dtype}{hint}")
+    if not (image.ndim == 2 or (image.ndim == 3 and image.shape[2] in (1, 3, 4))):
+        raise InputError(f"engine input must be (H, W) gray, (H, W, 3) BGR or (H, W, 4) BGRA, "
+                         f"not shape {tuple(image.shape)}")
+    if image.shape[0] == 0 or image.shape[1] == 0:
+        raise InputError(f"engine input is empty (shape {image.shape})")
+    if image.ndim == 3 and image.shape[2] == 1:
+        image = image[:, :, 0]
+    elif image.ndim == 3 and image.shape[2] == 4:
+        image = cv2.cvtColor(image, cv2.COLOR_BGRA2BGR)
+    if shape is not None and image.shape != tuple(shape):
+        raise InputError(f"frames changed from {describe_shape(tuple(shape))} to "
+                         f"{describe_shape(image.shape)} (a new stream needs a new engine)")
+    return image
+
+
+def check_learning_rate(learning_rate: Any, *, default: float = -1.0) -> float:
+    """``learning_rate`` as a float in [0, 1], or negative (automatic); a negative one is
+    replaced by ``default``, the engine's ``learning_rate`` parameter."""
+    if isinstance(learning_rate, (bool, np.bool_)) or not isinstance(learning_rate, numbers.Real):
+        raise InputError(f"learning_rate must be a number, not {learning_rate!r}")
+    rate = float(learning_rate)
+    if not np.isfinite(rate) or rate > 1.0:
+        raise InputError(f"learning_rate must be in [0, 1] or negative (automatic), not {rate}")
+    return float(default) if rate < 0 else rate
+
+
+def check_fgmask(fgmask: Any, shape: tuple) -> None:
+    """Refuse an ``fgmask`` output buffer that is not a ``shape`` (H, W) uint8 array; called
+    before the engine learns the frame, so a refused call leaves the engine as it was."""
+    if fgmask is None:
+        return
+    if not isinstance(fgmask, np.ndarray) or fgmask.dtype != np.uint8 or fgmask.shape != shape:
+        got = (f"{fgmask.dtype} {fgmask.shape}" if isinstance(fgmask, np.ndarray)
+               else type(fgmask).__name__)
+        raise InputError(f"fgmask must be a {tuple(shape)} uint8 array, not {got}")
+    if not fgmask.flags.writeable:
+        raise InputError("fgmask is read-only; give a writeable array (or none: apply returns "
+                         "the mask)")
+
+
+class Engine(ABC):
+    """A background subtractor with OpenCV's ``BackgroundSubtractor`` shape.
+
+    Implementations decorate ``apply`` with :func:`opencv_keywords` and start it with
+    :func:`check_frame`, :func:`check_learning_rate` and :func:`check_fgmask`, so every engine
+    refuses the same inputs with the same words before it changes state."""
+
+    @abstractmethod
+    def apply(
+        self,
+        image: np.ndarray,
+        fgmask: Optional[np.ndarray] = None,
+        learning_rate: float = -1.0,
+    ) -> np.ndarray:
+        """Process the next frame and return its foreground mask.
+
+        Parameters
+        ----------
+        image : (H, W, 3) BGR, (H, W, 4) BGRA or (H, W) gray uint8 array
+            The next frame of the stream, of the same size as the earlier ones (a frame of
+            another size raises :class:`~bgsub.errors.InputError`: a new stream needs a new
+            engine). BGRA's alpha is dropped. Other depths (16-bit, float) are refused: scale
+            them to 8 bits first (for 16-bit, ``(frame >> 8).astype(np.uint8)``).
+        fgmask : (H, W) uint8 array, optional
+            Written in place when given (as OpenCV does).
+        learning_rate : float
+            How fast the background model adapts, as in OpenCV: negative = the engine's own
+            rate; 0 = do not update the model (it stays as it is while, say, a robot arm is in
+            view); 1 = restart it from this frame; in between, the rate for every pixel. Also
+            accepted as ``learningRate=``. The mask of a call at 1: ``mog2`` and ``knn`` (as
+            OpenCV's) call the whole frame foreground, and ``knn`` the next three as well; the
+            other engines compare the frame with the model they are about to discard.
+
+        Returns
+        -------
+        (H, W) uint8 array with values 0 (background) and 255 (foreground).
+
+        Raises
+        ------
+        InputError
+            For an invalid frame, ``fgmask`` or ``learning_rate``, before the engine changes.
+        """
+
+    def get_background_image(self) -> Optional[np.ndarray]:
+        """The current background estimate as an image like the input, or ``None``."""
+        return None
+
+    def close(self) -> None:
+        """Release what the engine holds beyond its model (a worker thread), so that
+        ``contextlib.closing(engine)`` works; the engine stays usable."""
+
+    # OpenCV's camelCase names, so code written against cv2 runs as it is.
+    def getBackgroundImage(self, backgroundImage: Optional[np.ndarray] = None  # noqa: N802,N803
+                           ) -> Optional[np.ndarray]:
+        """:meth:`get_background_image`; like OpenCV's, it also fills ``backgroundImage`` when
+        that is an array of the background's shape and dtype (and returns it)."""
+        image = self.get_background_image()
+        if backgroundImage is None or image is None:
+            return image
+        if (not isinstance(backgroundImage, np.ndarray) or backgroundImage.shape != image.shape
+                or backgroundImage.dtype != image.dtype):
+            got = (f"{backgroundImage.dtype} {backgroundImage.shape}"
+                   if isinstance(backgroundImage, np.ndarray) else type(backgroundImage).__name__)
+            raise InputError(f"backgroundImage must be a {image.shape} {image.dtype} array, "
+                             f"not {got}")
+        backgroundImage[...] = image
+        return backgroundImage
+
+
+_C_INT_MAX = 2**31 - 1
+
+
+_KIND_NAMES = {bool: "yes/no (1/0, true/false, on/off)", int: "an integer", float: "a number",
+               str: "text"}
+
+
+@dataclass(frozen=True)
+class Param:
+    """One tunable parameter of an engine: its default (which also fixes its type) and meaning.
+
+    ``choices`` lists the allowed values of a text parameter; ``low`` / ``high`` bound a number
+    (inclusive) and ``above`` bounds it from below, exclusive (a rate that must be positive).
+    """
+
+    default: Any
+    help: str
+    choices: Optional[tuple] = None
+    low: Optional[float] = None
+    high: Optional[float] = None
+    above: Optional[float] = None
+
+    def parse(self, name: str, text: str) -> Any:
+        """Convert the command-line text ``text`` to this parameter's type."""
+        kind = type(self.default)
+        try:
+            if kind is bool:
+                lowered = text.strip().lower()
+                if lowered not in {"1", "0", "true", "false", "yes", "no", "on", "off"}:
+                    raise ValueError(text)
+                value: Any = lowered in {"1", "true", "yes", "on"}
+            elif kind is int:
+                value = int(text)
+            elif kind is float:
+                value = float(text)
+            else:
+                value = text
+        except ValueError:
+            raise InputError(f"parameter {name!r} takes {_KIND_NAMES.get(kind, kind.__name__)}, "
+                             f"not {text!r}") from None
+        self.check(name, value)
+        return value
+
+    def check(self, name: str, value: Any) -> None:
+        """Raise :class:`InputError` when ``value`` is not of this parameter's type (that of
+        its default; an integer is also a number), not finite, or outside ``choices`` or the
+        bounds. A parameter whose default is not a bool, int, float or str (a model object)
+        takes any value."""
+        self._check_type(name, value)
+        if self.choices is not None and value not in self.choices:
+            allowed = ", ".join(map(str, self.choices))
+            raise InputError(f"parameter {name!r} must be one of {allowed}, not {value!r}")
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+            return
+        if not math.isfinite(value):
+            raise InputError(f"parameter {name!r} must be a finite number, not {value!r}")
+        if isinstance(value, int) and not -_C_INT_MAX <= value <= _C_INT_MAX:
+            # Engines hand their integers to OpenCV, whose C ints cannot hold more.
+            raise InputError(f"parameter {name!r} is too large: {value}")
+        if self.low is not None and not value >= self.low:
+            raise InputError(f"parameter {name!r} must be at least {self.low:g}, not {value!r}")
+        if self.high is not None and not value <= self.high:
+            raise InputError(f"parameter {name!r} must be at most {self.high:g}, not {value!r}")
+        if self.above is not None and not value > self.above:
+            raise InputError(f"parameter {name!r} must be greater than {self.above:g}, "
+                             f"not {value!r}")
+
+
+    def _check_type(self, name: str, value: Any) -> None:
+        kind = type(self.default)
+        if kind is bool:
+            ok = isinstance(value, (bool, np.bool_))
+        elif kind is int:
+            # Not a float, even 3.0: the engines would truncate 1.7 to 1 without a word.
+            ok = isinstance(value, numbers.Integral) and not isinstance(value, (bool, np.bool_))
+        elif kind is float:
+            ok = isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+        elif kind is str:
+            # A model parameter may also take the object itself (a GatedRBM) from Python.
+            ok = isinstance(value, str) or self.choices is None
+        else:
+            ok = True
+        if not ok:
+            raise InputError(f"parameter {name!r} takes {_KIND_NAMES.get(kind, kind.__name__)}, "
+                             f"not {value!r}")
+
+
+#: The ``learning_rate`` parameter every engine registers: the rate ``apply()`` uses when its
+#: caller gives none (``bgsub run --param learning_rate=0.01``, as MOG2 users set it).
+LEARNING_RATE = Param(-1.0, "background learning rate of every frame, as OpenCV's apply() takes "
+                            "it: negative = the engine's own, 0 = never update the model, "
+                            "1 = restart it every frame", high=1.0)
+
+
+@dataclass(frozen=True)
+class EngineSpec:
+    """A registered engine: how to build it and what can be tuned."""
+
+    name: str
+    description: str
+    factory: Callable[..., Engine]
+    params: Dict[str, Param] = field(default_factory=dict)
+
+    def create(self, **params: Any) -> Engine:
+        """Build the engine; unknown or ill-typed parameters raise :class:`InputError`."""
+        unknown = sorted(set(params) - set(self.params))
+        if unknown:
+            known = ", ".join(self.params) or "none"
+            raise InputError(
+                f"method {self.name!r} has no parameter {unknown[0]!r} (its parameters: {known})"
+            )
+        values = {name: p.default for name, p in self.params.items()}
+        for name, value in params.items():
+            try:
+                self.params[name].check(name, value)
+            except InputError as err:
+                raise InputError(f"{self.name}: {err}") from None
+            values[name] = value
+        return self.factory(**values)
+
+
+_REGISTRY: Dict[str, EngineSpec] = {}
+_loaded = False
+_loading = False
+_load_lock = threading.RLock()
+
+
+def register_engine(
+    name: str, description: str, params: Optional[Dict[str, Param]] = None
+) -> Callable[[Callable[..., Engine]], Callable[..., Engine]]:
+    """Decorator: register ``factory(**params) -> Engine`` under ``name``."""
+
+    def decorate(factory: Callable[..., Engine]) -> Callable[..., Engine]:
+        _REGISTRY[name] = EngineSpec(name, description, factory, dict(params or {}))
+        return factory
+
+    return decorate
+
+
+def _load_builtins() -> None:
+    # Under a lock: a thread that asks while another imports waits for every built-in engine
+    # (it saw an empty registry before). The importing thread itself may ask again (a module
+    # that looks an engine up while it is imported): it gets what is registered so far.
+    global _loaded, _loading
+    if _loaded:
+        return
+    with _load_lock:
+        if _loaded or _loading:
+            return
+        _loading = True
+        try:
+            for module in _BUILTIN_MODULES:
+                importlib.import_module(module)
+            _loaded = True
+        finally:
+            _loading = False
+
+
+def available_engines() -> List[EngineSpec]:
+    """All registered engines, in registration order."""
+    _load_builtins()
+    return list(_REGISTRY.values())
+
+
+def default_method() -> str:
+    """Name of the engine used when none is asked for."""
+    return DEFAULT_METHOD
+
+
+def get_engine_spec(name: str) -> EngineSpec:
+    """The registered engine called ``name``; :class:`InputError` if there is none."""
+    _load_builtins()
+    try:
+        return _REGISTRY[name]
+    except KeyError:
+        known = ", ".join(_REGISTRY)
+        raise InputError(f"unknown method {name!r} (available: {known})") from None
+
+
+def create_engine(name: Optional[str] = None, **params: Any) -> Engine:
+    """Build the engine ``name`` (``None``: :func:`default_method`) with ``params``."""
+    return get_engine_spec(default_method() if name is None else name).create(**params)
+
+
+def parse_params(name: str, pairs: Iterable[str]) -> Dict[str, Any]:
+    """Parse ``["key=value", ...]`` from the command line against engine ``name``'s params."""
+    spec = get_engine_spec(name)
+    parsed: Dict[str, Any] = {}
+    for pair in pairs:
+        key, sep, text = pair.partition("=")
+        key = key.strip().replace("-", "_")
+        if not sep or not key:
+            raise InputError(f"--param takes key=value, not {pair!r}")
+        if key not in spec.params:
+            known = ", ".join(spec.params) or "none"
+            raise InputError(f"method {name!r} has no parameter {key!r} (its parameters: {known})")
+        try:
+            parsed[key] = spec.params[key].parse(key, text)
+        except InputError as err:
+            raise InputError(f"{name}: {err}") from None
+    return parsed

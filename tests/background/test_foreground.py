@@ -1,0 +1,327 @@
+"""bgsub.background.foreground: the camera-compensated background model, flow violation, fusion."""
+
+import cv2
+import numpy as np
+import pytest
+
+from bgsub.errors import InputError, describe_shape
+from bgsub.background.foreground import (
+    BackgroundParams,
+    CompensatedBackground,
+    clean_mask,
+    flow_violation_map,
+    fuse_masks,
+    still_in_image_map,
+)
+
+
+def _scene(h=120, w=160, seed=0):
+    rng = np.random.default_rng(seed)
+    small = rng.integers(0, 256, (h // 6 + 4, w // 6 + 4, 3)).astype(np.uint8)
+    return cv2.resize(small, (w + 60, h + 60), interpolation=cv2.INTER_CUBIC)
+
+
+def _view(world, x0, h=120, w=160):
+    m = np.float32([[1, 0, -x0], [0, 1, -10]])
+    return cv2.warpAffine(world, m, (w, h), flags=cv2.INTER_LINEAR)
+
+
+def test_pure_pan_gives_no_foreground():
+    world = _scene()
+    bg = CompensatedBackground()
+    masks = []
+    for k in range(12):
+        frame = _view(world, 3.0 * k)
+        if k == 0:
+            bg.reset(frame)
+            bg.update(frame)
+            continue
+        h = np.array([[1, 0, -3.0], [0, 1, 0], [0, 0, 1]])  # content moves 3 px left
+        bg.warp(h)
+        mask = fuse_masks(bg.score(frame))
+        bg.update(frame, mask)
+        masks.append(mask)
+    assert max(np.count_nonzero(m) for m in masks) < 0.005 * masks[0].size
+
+
+@pytest.mark.parametrize("sharp, kept", [(False, 0.6), (True, 0.8)])
+def test_a_sharp_warp_keeps_a_frozen_models_detail(sharp, kept):
+    # Ten sub-pixel shifts there and back: what a model that does not learn (learning_rate=0)
+    # goes through in ten frames of a pan. Bilinear resampling blurs it at every step.
+    rng = np.random.default_rng(4)
+    texture = cv2.resize(rng.integers(0, 256, (30, 40)).astype(np.uint8), (160, 120),
+                         interpolation=cv2.INTER_CUBIC)
+    bg = CompensatedBackground()
+    bg.update(texture)
+    detail = cv2.Laplacian(bg.mean[:, :, 0], cv2.CV_32F)[20:-20, 20:-20].var()
+    for k in range(10):
+        shift = 0.4 if k % 2 == 0 else -0.4
+        bg.warp(np.array([[1, 0, shift], [0, 1, shift], [0, 0, 1.0]]), sharp=sharp)
+    after = cv2.Laplacian(bg.mean[:, :, 0], cv2.CV_32F)[20:-20, 20:-20].var()
+    if sharp:
+        assert after > kept * detail, after / detail
+        assert 0.0 <= bg.mean.min() and bg.mean.max() <= 255.0
+    else:
+        assert after < kept * detail, after / detail
+
+
+def test_uncovered_border_has_no_history_and_is_not_foreground():
+    bg = CompensatedBackground(BackgroundParams())
+    first = np.full((50, 60, 3), 100, np.uint8)
+    bg.reset(first)
+    bg.update(first)
+    bg.warp(np.array([[1, 0, -10.0], [0, 1, 0], [0, 0, 1]]))
+    assert np.all(bg.age[:, -9:] == 0) and np.all(bg.age[:, :40] >= 1)
+    new = first.copy()
+    new[:, -10:] = 250  # new content scrolling in: different, but no history there
+    young = bg.params.young_score
+    assert 0 < young < 1  # below the decision: only motion evidence can make it foreground
+    assert np.all(bg.score(new)[:, -9:] == np.float32(young))
+    assert not fuse_masks(bg.score(new)).any()
+
+
+def test_young_pixels_are_foreground_only_with_motion_evidence():
+    bg = CompensatedBackground(BackgroundParams())
+    first = np.full((50, 60), 100, np.uint8)
+    bg.reset(first)
+    bg.update(first)
+    bg.warp(np.array([[1, 0, -20.0], [0, 1, 0], [0, 0, 1]]))  # a 20-px band without history
+    score = bg.score(first)
+    violation = np.full(score.shape, 0.5, np.float32)
+    violation[:, 30:] = 1.0  # the local motion strongly violates the camera's right of x=30
+    mask = fuse_masks(score, violation, flow_boost=1.5, flow_damp=0.2, min_area=0)
+    assert mask[:, -19:].all()  # young and violating
+    assert not mask[:, 30:40].any()  # violating but matching its history
+    assert not fuse_masks(score, None, min_area=0).any()  # young without evidence
+
+
+def test_object_on_static_background_is_found():
+    world = _scene()
+    frame0 = _view(world, 0)
+    bg = CompensatedBackground()
+    bg.reset(frame0)
+    bg.update(frame0)
+    frame = frame0.copy()
+    frame[40:70, 50:90] = (0, 0, 255)
+    mask = fuse_masks(bg.score(frame))
+    assert mask.dtype == np.uint8 and set(np.unique(mask)) <= {0, 255}
+    inside = mask[45:65, 55:85] > 0
+    assert inside.mean() > 0.95
+    assert np.count_nonzero(mask) < 1.3 * 30 * 40
+
+
+def test_flow_violation_marks_disagreeing_vectors():
+    ys, xs = np.mgrid[4:100:8, 4:100:8]
+    pts = np.stack([xs.ravel(), ys.ravel()], 1).astype(np.float32)
+    cam = np.array([[1, 0, 2.0], [0, 1, 0], [0, 0, 1]])
+    disp = np.tile([2.0, 0.0], (len(pts), 1))
+    moving = (pts[:, 0] > 60) & (pts[:, 1] > 60)
+    disp[moving] = [-3.0, 1.0]
+    vmap = flow_violation_map(pts, disp, cam, weights=np.ones(len(pts)), shape=(100, 100))
+    assert vmap.shape == (100, 100) and vmap.dtype == np.float32
+    assert vmap[85, 85] > 0.9
+    assert vmap[20, 20] < 0.1
+
+
+def test_fusion_damps_agreeing_and_boosts_violating_regions():
+    score = np.full((40, 40), 1.2, np.float32)
+    violation = np.zeros((40, 40), np.float32)
+    violation[:, 20:] = 1.0
+    mask = fuse_masks(score, violation, flow_boost=0.8, flow_damp=0.8, min_area=1, close=0)
+    assert not mask[:, :18].any() and mask[:, 22:].all()
+
+
+def test_clean_mask_drops_small_blobs():
+    m = np.zeros((50, 50), np.uint8)
+    m[5:8, 5:8] = 255  # 9 px speck
+    m[20:40, 20:40] = 255
+    out = clean_mask(m, min_area=30)
+    assert out[30, 30] == 255 and out[6, 6] == 0
+
+
+def test_update_after_score_of_the_same_frame_equals_a_fresh_update():
+    """score() keeps the frame's difference for update(); the result must not depend on it."""
+    world = _scene(seed=3)
+    frames = [_view(world, x0) for x0 in (0, 2, 4, 6)]
+    shift = np.array([[1, 0, -2.0], [0, 1, 0], [0, 0, 1]])
+    models = [CompensatedBackground(BackgroundParams()) for _ in range(2)]
+    for bg in models:
+        bg.reset(frames[0])
+        bg.update(frames[0])
+    for frame in frames[1:]:
+        masks = []
+        for k, bg in enumerate(models):
+            bg.warp(shift)
+            masks.append(fuse_masks(bg.score(frame)))
+        np.testing.assert_array_equal(masks[0], masks[1])
+        models[0].update(frame, masks[0])  # the scored object: reuses the difference
+        models[1].update(frame.copy(), masks[1])  # another object: recomputes it
+        for name in ("mean", "var", "age"):
+            np.testing.assert_allclose(getattr(models[0], name), getattr(models[1], name),
+                                       rtol=1e-6, atol=1e-4)
+
+
+def test_violation_threshold_scales_with_the_vectors_noise():
+    """Noisy background vectors (+-1 px scatter) violate a fixed 0.75 px threshold in most
+    cells; scaled by their robust spread (threshold ~4.6 px) they do not, while an 8 px object
+    still does."""
+    rng = np.random.default_rng(0)
+    ys, xs = np.mgrid[4:100:4, 4:100:4]
+    pts = np.stack([xs.ravel(), ys.ravel()], 1).astype(np.float32)
+    cam = np.eye(3)
+    disp = rng.uniform(-1.0, 1.0, (len(pts), 2))
+    moving = (pts[:, 0] > 70) & (pts[:, 1] > 70)
+    disp[moving] += [8.0, 0.0]
+    w = np.ones(len(pts))
+    fixed = flow_violation_map(pts, disp, cam, weights=w, shape=(100, 100), threshold=0.75)
+    scaled = flow_violation_map(pts, disp, cam, weights=w, shape=(100, 100), threshold=0.75,
+                                noise_scale=4.0)
+    assert fixed[30, 30] > 0.3
+    assert scaled[30, 30] < 0.1
+    assert scaled[88, 88] > 0.9
+
+
+def test_clean_mask_fills_a_hole_enclosed_by_a_blob():
+    m = np.zeros((60, 60), np.uint8)
+    m[10:50, 10:50] = 255
+    m[20:40, 20:40] = 0  # a 400 px hole
+    out = clean_mask(m, min_area=1, close=0, fill_holes=500)
+    assert out[10:50, 10:50].all() and not out[:10].any()
+
+
+def test_clean_mask_keeps_holes_larger_than_the_limit():
+    m = np.zeros((60, 60), np.uint8)
+    m[10:50, 10:50] = 255
+    m[20:40, 20:40] = 0
+    out = clean_mask(m, min_area=1, close=0, fill_holes=399)
+    assert not out[20:40, 20:40].any()
+
+
+def test_clean_mask_does_not_fill_background_open_to_the_border():
+    m = np.zeros((60, 60), np.uint8)
+    m[10:50, 10:50] = 255
+    m[20:40, 20:60] = 0  # a notch reaching the right edge, not a hole
+    out = clean_mask(m, min_area=1, close=0, fill_holes=10_000)
+    assert not out[20:40, 20:60].any() and not out[:10].any()
+
+
+def test_fusion_fills_the_inside_of_an_object_seen_only_at_its_outline():
+    score = np.zeros((60, 60), np.float32)
+    score[10:50, 10:50] = 2.0
+    score[16:44, 16:44] = 0.0  # a flat interior that matches the background it covered
+    mask = fuse_masks(score, min_area=1, close=0, fill_holes=5000)
+    assert mask[10:50, 10:50].all() and not mask[:10].any()
+
+
+def _gray_view(world, x0):
+    return cv2.cvtColor(_view(world, x0), cv2.COLOR_BGR2GRAY)
+
+
+def test_still_in_image_map_marks_what_the_camera_follows():
+    world = _scene()
+    thing = cv2.cvtColor(_scene(seed=7), cv2.COLOR_BGR2GRAY)[:40, :40]
+    prev, cur = _gray_view(world, 0.0), _gray_view(world, 4.0)
+    for frame in (prev, cur):  # the camera pans, the object stays put in the image
+        frame[40:80, 60:100] = thing
+    pan = np.array([[1, 0, -4.0], [0, 1, 0], [0, 0, 1]])
+    still = still_in_image_map(prev, cur, pan)
+    assert still.dtype == np.float32 and still.shape == cur.shape
+    assert still[44:76, 64:96].mean() > 0.9
+    background = np.ones(cur.shape, bool)
+    background[30:90, 50:110] = False  # away from the object's outline (window 7)
+    background[:, -8:] = False  # and from the border the pan uncovers
+    assert still[background].mean() < 0.05
+
+
+def test_still_in_image_map_has_no_opinion_without_camera_motion():
+    world = _scene()
+    prev, cur = _gray_view(world, 0.0), _gray_view(world, 0.0)
+    cur[40:80, 60:100] = 255 - cur[40:80, 60:100]  # a change, but nothing to tell apart
+    assert still_in_image_map(prev, cur, np.eye(3)).max() < 0.1
+
+
+# ---------------------------------------------------------------- bad input: InputError, one line
+
+
+def _reset_model(shape=(40, 50, 3)):
+    bg = CompensatedBackground()
+    bg.reset(np.full(shape, 100, np.uint8))
+    return bg
+
+
+@pytest.mark.parametrize("method", ["score", "update"])
+@pytest.mark.parametrize("shape", [(40, 60, 3), (40, 50), (40, 50, 4)])
+def test_frames_of_another_size_or_channel_count_are_refused(method, shape):
+    bg = _reset_model()
+    with pytest.raises(InputError, match=r"the frame is .*, the background model 50x40 BGR"):
+        getattr(bg, method)(np.full(shape, 100, np.uint8))
+
+
+@pytest.mark.parametrize("shape, words", [((40, 50), "50x40 gray"), ((40, 50, 1), "50x40 gray"),
+                                          ((40, 50, 3), "50x40 BGR"),
+                                          ((40, 50, 4), "50x40 with 4 channels")])
+def test_shapes_are_described_as_a_user_reads_them(shape, words):
+    assert describe_shape(shape) == words
+
+
+def test_a_gray_model_takes_h_w_and_h_w_1_frames():
+    bg = _reset_model((40, 50))
+    for frame in (np.full((40, 50), 100, np.uint8), np.full((40, 50, 1), 100, np.uint8)):
+        assert bg.score(frame).shape == (40, 50)
+        bg.update(frame)
+
+
+def test_update_refuses_a_mask_of_another_size():
+    bg = _reset_model()
+    with pytest.raises(InputError, match=r"mask has shape \(40, 49\)"):
+        bg.update(np.full((40, 50, 3), 100, np.uint8), np.zeros((40, 49), bool))
+
+
+@pytest.mark.parametrize("rate", [1.5, 2.0, float("nan")])
+def test_update_refuses_a_learning_rate_above_one(rate):
+    bg = _reset_model()
+    with pytest.raises(InputError, match="learning rate must be at most 1"):
+        bg.update(np.full((40, 50, 3), 100, np.uint8), learning_rate=rate)
+
+
+def test_a_restart_may_change_the_size_and_score_before_any_frame_is_zero():
+    bg = CompensatedBackground()
+    np.testing.assert_array_equal(bg.score(np.full((8, 9), 7, np.uint8)), np.zeros((8, 9)))
+    bg = _reset_model()
+    bg.update(np.full((20, 30), 100, np.uint8), learning_rate=1.0)  # restarts, documented
+    assert bg.mean.shape == (20, 30, 1)
+
+
+def test_clean_mask_refuses_a_colour_mask():
+    with pytest.raises(InputError, match=r"mask must be \(H, W\).*\(20, 20, 3\)"):
+        clean_mask(np.zeros((20, 20, 3), np.uint8))
+    assert clean_mask(np.zeros((20, 20, 1), np.uint8)).shape == (20, 20)
+
+
+def test_flow_violation_map_refuses_missing_or_mismatched_weights():
+    pts = np.array([[10.0, 10.0], [20.0, 20.0]])
+    disp = np.zeros_like(pts)
+    with pytest.raises(InputError, match="needs weights"):
+        flow_violation_map(pts, disp, np.eye(3), weights=None, shape=(32, 32))
+    with pytest.raises(InputError, match=r"\(2, 2\), \(2, 2\) and \(3,\)"):
+        flow_violation_map(pts, disp, np.eye(3), weights=np.ones(3), shape=(32, 32))
+    with pytest.raises(InputError, match=r"\(2, 2\), \(1, 2\) and \(2,\)"):
+        flow_violation_map(pts, disp[:1], np.eye(3), weights=np.ones(2), shape=(32, 32))
+    with pytest.raises(InputError, match=r"\(3, 3\) matrix"):
+        flow_violation_map(pts, disp, np.eye(3)[:2], weights=np.ones(2), shape=(32, 32))
+
+
+def test_still_in_image_map_refuses_colour_float_or_mismatched_frames():
+    gray = np.zeros((30, 40), np.uint8)
+    with pytest.raises(InputError, match=r"\(H, W\) uint8 gray.*cur is uint8 of shape \(30, 40, 3\)"):
+        still_in_image_map(gray, np.zeros((30, 40, 3), np.uint8), np.eye(3))
+    with pytest.raises(InputError, match="prev is float32"):
+        still_in_image_map(gray.astype(np.float32), gray, np.eye(3))
+    with pytest.raises(InputError, match="differ in size"):
+        still_in_image_map(gray, gray[:, :39].copy(), np.eye(3))
+
+
+def test_fuse_masks_refuses_a_violation_map_of_another_shape():
+    with pytest.raises(InputError, match=r"violation map has shape \(30, 41\)"):
+        fuse_masks(np.zeros((30, 40), np.float32), np.zeros((30, 41), np.float32),
+                   flow_boost=1.0)

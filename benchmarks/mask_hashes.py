@@ -79,8 +79,8 @@ def hash_masks(job: tuple) -> tuple:
     return label, name, digest.hexdigest()
 
 
-def run(out: Path, methods: list, jobs: int) -> None:
-    work = [(m, name, src) for m in methods for name, src in sequences()]
+def run(out: Path, methods: list, jobs: int, match: str = "") -> None:
+    work = [(m, name, src) for m in methods for name, src in sequences() if match in name]
     result: dict = {m: {} for m in methods}
     with ProcessPoolExecutor(jobs) as pool:
         for i, (label, name, digest) in enumerate(pool.map(hash_masks, work), 1):
@@ -91,8 +91,10 @@ def run(out: Path, methods: list, jobs: int) -> None:
 
 def compare(a: Path, b: Path) -> int:
     old, new = json.loads(a.read_text()), json.loads(b.read_text())
-    differ = [(m, s) for m in old for s in old[m] if new.get(m, {}).get(s) != old[m][s]]
-    n = sum(len(v) for v in old.values())
+    # Only what both runs hashed (a run may cover a subset: --match, --methods).
+    pairs = [(m, s) for m in new for s in new[m] if s in old.get(m, {})]
+    differ = [(m, s) for m, s in pairs if new[m][s] != old[m][s]]
+    n = len(pairs)
     for m, s in differ:
         print(f"differs: {m} {s}")
     print(f"{n - len(differ)} of {n} mask sequences identical")
@@ -104,13 +106,14 @@ def main() -> int:
     ap.add_argument("-o", "--out", type=Path, help="JSON file to write the hashes to")
     ap.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS))
     ap.add_argument("--jobs", type=int, default=2, help="sequences hashed at once (processes)")
+    ap.add_argument("--match", default="", help="only sequences whose name contains this")
     ap.add_argument("--compare", nargs=2, type=Path, metavar=("OLD", "NEW"))
     args = ap.parse_args()
     if args.compare:
         return compare(*args.compare)
     if not args.out:
         ap.error("give -o FILE (or --compare OLD NEW)")
-    run(args.out, args.methods, args.jobs)
+    run(args.out, args.methods, args.jobs, args.match)
     return 0
 
 

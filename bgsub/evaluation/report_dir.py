@@ -101,7 +101,7 @@ class RunOutputs:
 
 def _previous_report(root: Path) -> Tuple[Optional[List[str]], List[str]]:
     """``(outputs, methods)`` listed by ``root/report.json``; outputs ``None`` when it lists
-    none (no report, an unreadable one, or one written before reports listed their outputs)."""
+    none (no report, an unreadable one, or one without an ``"outputs"`` list)."""
     try:
         data = json.loads((root / "report.json").read_text())
     except (OSError, ValueError, UnicodeDecodeError):
@@ -162,7 +162,7 @@ def remove_previous_outputs(root: PathLike, *, methods: Sequence[str] = (),
     """Remove what an earlier compare run wrote in the report folder ``root``, nothing else.
 
     The outputs are those the earlier run's ``report.json`` lists (``"outputs"``); without
-    that list (no report, e.g. after Ctrl-C, or one from an older version) compare's naming
+    that list (no report, e.g. after Ctrl-C, or one without it) compare's naming
     rules find them (:func:`_outputs_by_name`), for the methods the report names, the
     registered engines and ``methods``. Of a mask folder only its ``binNNNNNN.png`` files go
     (and the folder, once empty); of a video or report file, the file and the temporary file
@@ -189,8 +189,6 @@ def remove_previous_outputs(root: PathLike, *, methods: Sequence[str] = (),
     OutputError
         A protected path would be removed, or a file cannot be.
     """
-    from bgsub.io.sinks import _MASK_NAME, _PARTIAL_MASK_NAME
-
     root = Path(root)
     listed, report_methods = _previous_report(root)
     names = list(dict.fromkeys([*report_methods, *(spec.name for spec in available_engines()),
@@ -199,8 +197,19 @@ def remove_previous_outputs(root: PathLike, *, methods: Sequence[str] = (),
         candidates = _outputs_by_name(root, names)
     else:
         candidates = [rel for rel in listed if _names_an_output(rel, names)]
+    # What goes is gathered before anything is removed, so a protected input stops it all.
+    files, folders = _previous_files(root, candidates, names)
+    _refuse_protected([*files, *folders], protect)
+    return _remove(root, files, folders)
 
-    # What goes, gathered before anything is removed so a protected input stops it all.
+
+def _previous_files(root: Path, candidates: Sequence[str], names: Sequence[str]
+                    ) -> Tuple[List[Path], List[Path]]:
+    """``(files, mask folders)`` to remove among the ``candidates`` paths (relative to
+    ``root``): a mask folder's ``binNNNNNN.png`` files, a video's or report's file and the
+    temporary file an interrupted writer leaves. Symbolic links are left alone."""
+    from bgsub.io.sinks import _MASK_NAME, _PARTIAL_MASK_NAME
+
     files: List[Path] = []
     folders: List[Path] = []  # mask folders, removed once empty
     for rel in dict.fromkeys(candidates):
@@ -222,14 +231,23 @@ def remove_previous_outputs(root: PathLike, *, methods: Sequence[str] = (),
             # The file, and the one an interrupted video writer leaves (sinks._partial_path).
             partial = path.with_name(f".{path.stem}.partial{path.suffix}")
             files += [p for p in (path, partial) if p.is_file() and not p.is_symlink()]
+    return files, folders
+
+
+def _refuse_protected(paths: Sequence[Path], protect: Sequence[PathLike]) -> None:
+    """:class:`OutputError` when one of ``paths`` is, or holds, one of ``protect``."""
     guarded = {Path(p).resolve() for p in protect}
-    for path in [*files, *folders]:
+    for path in paths:
         resolved = path.resolve()
         if resolved in guarded or any(parent in guarded for parent in resolved.parents):
             raise OutputError(f"{path} was written by an earlier bgsub compare but is part of "
                               "this run's input: --overwrite will not remove it; write the "
                               "report elsewhere")
 
+
+def _remove(root: Path, files: Sequence[Path], folders: Sequence[Path]) -> List[str]:
+    """Remove ``files``, then the folders left empty (``folders`` and the files' own) up to
+    ``root``; returns the removed paths relative to ``root`` (folders end in ``/``)."""
     removed: List[str] = []
     emptied = set()
     for path in files:
@@ -253,4 +271,3 @@ def remove_previous_outputs(root: PathLike, *, methods: Sequence[str] = (),
             removed.append(folder.relative_to(root).as_posix() + "/")
             folder = folder.parent
     return removed
-

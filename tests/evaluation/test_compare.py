@@ -6,7 +6,7 @@ import csv
 import json
 import math
 from pathlib import Path
-from typing import Optional, Tuple
+from typing import Tuple
 
 import cv2
 import numpy as np
@@ -16,42 +16,15 @@ from bgsub.cli import main
 from bgsub.evaluation.compare import TileLayout, compare_methods
 from bgsub.errors import InputError, OutputError
 from bgsub.evaluation.cdnet import METRIC_NAMES, Metrics, evaluate_sequence
+from conftest import SCENE_H, SCENE_W, write_input_sequence
 
 METHODS = ["framediff", "mog2"]
-W, H = 64, 48
-
-
-def write_sequence(folder: Path, *, n_frames: int = 8, side: int = 10, speed: int = 4,
-                   seed: int = 0, temporal_roi: Optional[str] = None,
-                   roi: Optional[np.ndarray] = None) -> Path:
-    """A tiny CDnet sequence: static textured background, a bright square moving right.
-
-    ``input/in%06d.png`` (lossless, so the test does not depend on JPEG), ``groundtruth/
-    gt%06d.png`` (0/255), optional ``temporalROI.txt`` and ``ROI.bmp``.
-    """
-    rng = np.random.default_rng(seed)
-    background = rng.integers(40, 120, size=(H, W), dtype=np.uint8)
-    (folder / "input").mkdir(parents=True)
-    (folder / "groundtruth").mkdir()
-    for k in range(n_frames):
-        frame = background.copy()
-        gt = np.zeros((H, W), np.uint8)
-        x, y = 2 + speed * k, 12 + seed
-        frame[y:y + side, x:x + side] = 230
-        gt[y:y + side, x:x + side] = 255
-        cv2.imwrite(str(folder / "input" / f"in{k + 1:06d}.png"),
-                    cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR))
-        cv2.imwrite(str(folder / "groundtruth" / f"gt{k + 1:06d}.png"), gt)
-    if temporal_roi is not None:
-        (folder / "temporalROI.txt").write_text(temporal_roi + "\n")
-    if roi is not None:
-        cv2.imwrite(str(folder / "ROI.bmp"), roi)
-    return folder
+W, H = SCENE_W, SCENE_H
 
 
 @pytest.fixture
 def sequence(tmp_path: Path) -> Path:
-    return write_sequence(tmp_path / "famA_one", temporal_roi="1 8")
+    return write_input_sequence(tmp_path / "famA_one", temporal_roi="1 8")
 
 
 def test_cli_writes_report_masks_and_video(sequence: Path, tmp_path: Path, capsys) -> None:
@@ -168,9 +141,9 @@ def test_tile_layout_stays_sensible_for_large_frames() -> None:
 
 def test_dataset_root_family_and_overall_means(tmp_path: Path) -> None:
     root = tmp_path / "data"
-    write_sequence(root / "famA_one", seed=0, side=10, speed=4)
-    write_sequence(root / "famA_two", seed=1, side=6, speed=2)
-    write_sequence(root / "famB_one", seed=2, side=14, speed=5)
+    write_input_sequence(root / "famA_one", seed=0, side=10, speed=4)
+    write_input_sequence(root / "famA_two", seed=1, side=6, speed=2)
+    write_input_sequence(root / "famB_one", seed=2, side=14, speed=5)
     report = compare_methods(root, methods=METHODS, report_dir=tmp_path / "out",
                              skip_first=True, video=False, masks="none")
     assert [(r.name, r.method) for r in report.rows] == [
@@ -193,8 +166,8 @@ def test_dataset_root_family_and_overall_means(tmp_path: Path) -> None:
 
 def test_dataset_category_layout_and_outputs_per_sequence(tmp_path: Path) -> None:
     root = tmp_path / "cdnet"
-    write_sequence(root / "baseline" / "highway", seed=0)
-    write_sequence(root / "cameraJitter" / "traffic", seed=1)
+    write_input_sequence(root / "baseline" / "highway", seed=0)
+    write_input_sequence(root / "cameraJitter" / "traffic", seed=1)
     out = tmp_path / "out"
     report = compare_methods(root, methods=["framediff"], report_dir=out, max_frames=3)
     assert [(r.name, r.family, r.frames) for r in report.rows] == [
@@ -207,9 +180,9 @@ def test_dataset_category_layout_and_outputs_per_sequence(tmp_path: Path) -> Non
     ("mkv", False, "framediff.mkv"), ("none", True, "side_by_side.mp4")])
 def test_dataset_outputs_without_png_masks_get_their_folder(tmp_path: Path, masks, video,
                                                             wanted) -> None:
-    # Only the PNG mask sink used to create a sequence's folder.
+    # Video and mkv sinks need the sequence's folder made for them, as the PNG sink makes its own.
     root = tmp_path / "data"
-    write_sequence(root / "famA_one", seed=0)
+    write_input_sequence(root / "famA_one", seed=0)
     out = tmp_path / "out"
     compare_methods(root, methods=["framediff"], report_dir=out, max_frames=3, masks=masks,
                     video=video)
@@ -219,7 +192,7 @@ def test_dataset_outputs_without_png_masks_get_their_folder(tmp_path: Path, mask
 def test_roi_bmp_used_for_a_sequence_ignored_for_a_dataset(tmp_path: Path) -> None:
     roi = np.zeros((H, W), np.uint8)
     roi[:, : W // 2] = 255
-    seq = write_sequence(tmp_path / "root" / "famA_one", roi=roi)
+    seq = write_input_sequence(tmp_path / "root" / "famA_one", roi=roi)
     used = compare_methods(seq, methods=["framediff"])
     ignored = compare_methods(tmp_path / "root", methods=["framediff"])
     forced = compare_methods(tmp_path / "root", methods=["framediff"], ignore_roi_bmp=False)
@@ -230,7 +203,7 @@ def test_roi_bmp_used_for_a_sequence_ignored_for_a_dataset(tmp_path: Path) -> No
 
 
 def test_temporal_roi_and_max_frames_limit_scoring(tmp_path: Path) -> None:
-    seq = write_sequence(tmp_path / "famA_one", temporal_roi="4 8")
+    seq = write_input_sequence(tmp_path / "famA_one", temporal_roi="4 8")
     report = compare_methods(seq, methods=["framediff"], max_frames=6)
     assert report.rows[0].frames == 6
     assert report.rows[0].eval_frames == 3  # frames 4, 5, 6
@@ -239,7 +212,7 @@ def test_temporal_roi_and_max_frames_limit_scoring(tmp_path: Path) -> None:
 
 
 def test_skip_first_drops_the_first_processed_frame_only(tmp_path: Path) -> None:
-    seq = write_sequence(tmp_path / "famA_one", temporal_roi="4 8")
+    seq = write_input_sequence(tmp_path / "famA_one", temporal_roi="4 8")
     # Frame 4 opens the temporal ROI but the engines have seen frames 1-3: it is scored.
     assert compare_methods(seq, methods=["framediff"], skip_first=True).rows[0].eval_frames == 5
     # Starting at frame 4 (index 3), frame 4 is the engines' first: it is not.
@@ -348,7 +321,7 @@ def test_dotted_report_dir_is_a_folder_when_it_says_so(sequence: Path, tmp_path:
 
 
 def test_bad_roi_bmp_fails_before_any_output(tmp_path: Path, capsys) -> None:
-    seq = write_sequence(tmp_path / "famA_one", roi=np.full((H, W + 8), 255, np.uint8))
+    seq = write_input_sequence(tmp_path / "famA_one", roi=np.full((H, W + 8), 255, np.uint8))
     out = tmp_path / "out"
     assert main(["compare", str(seq), "--methods", "framediff", "-o", str(out)]) == 2
     assert "--no-roi-bmp" in capsys.readouterr().err
@@ -358,7 +331,7 @@ def test_bad_roi_bmp_fails_before_any_output(tmp_path: Path, capsys) -> None:
 
 
 def test_gt_with_dataset_root_is_refused(tmp_path: Path) -> None:
-    write_sequence(tmp_path / "root" / "famA_one")
+    write_input_sequence(tmp_path / "root" / "famA_one")
     with pytest.raises(InputError, match="--gt"):
         compare_methods(tmp_path / "root", methods=["framediff"],
                         gt=tmp_path / "root" / "famA_one")
@@ -442,8 +415,8 @@ def test_ctrl_c_in_the_cli_prints_the_partial_report_and_exits_130(
 
 def test_ctrl_c_in_the_second_sequence_keeps_the_first(tmp_path: Path, monkeypatch) -> None:
     root = tmp_path / "data"
-    write_sequence(root / "famA_one", seed=0)
-    write_sequence(root / "famA_two", seed=1)
+    write_input_sequence(root / "famA_one", seed=0)
+    write_input_sequence(root / "famA_two", seed=1)
     _ctrl_c_at_frame(monkeypatch, 8 + 2)  # frame 2 of the second sequence
     with pytest.raises(KeyboardInterrupt) as stop:
         compare_methods(root, methods=METHODS, report_dir=tmp_path / "report")
@@ -487,8 +460,8 @@ def test_overwrite_leaves_only_this_runs_outputs_and_the_users_files(
 
 def test_overwrite_clears_a_dataset_roots_sequence_folders(tmp_path: Path) -> None:
     root = tmp_path / "data"
-    write_sequence(root / "baseline" / "highway", seed=0)
-    write_sequence(root / "cameraJitter" / "traffic", seed=1)
+    write_input_sequence(root / "baseline" / "highway", seed=0)
+    write_input_sequence(root / "cameraJitter" / "traffic", seed=1)
     out = tmp_path / "out"
     compare_methods(root, methods=["framediff", "mog2"], report_dir=out, max_frames=3)
     assert (out / "baseline" / "highway" / "side_by_side.mp4").is_file()
@@ -510,7 +483,7 @@ def test_overwrite_without_a_report_json_goes_by_compares_names(tmp_path: Path,
                                                                  dataset: bool) -> None:
     # An interrupted run (or an older bgsub) leaves outputs but no report.json listing them.
     root = tmp_path / "data"
-    seq = write_sequence(root / "cat" / "famA_one")
+    seq = write_input_sequence(root / "cat" / "famA_one")
     source = root if dataset else seq
     prefix = "cat/famA_one/" if dataset else ""
     out = tmp_path / "out"
@@ -535,7 +508,7 @@ def test_overwrite_without_a_report_json_goes_by_compares_names(tmp_path: Path,
 ])
 def test_overwrite_keeps_old_results_when_the_input_is_refused(
         sequence: Path, tmp_path: Path, capsys, argv_tail, message) -> None:
-    write_sequence(tmp_path / "late", n_frames=14, speed=2, temporal_roi="10 14")
+    write_input_sequence(tmp_path / "late", n_frames=14, speed=2, temporal_roi="10 14")
     out = tmp_path / "out"
     assert main(["compare", str(sequence / "input"), "--gt", str(sequence), "-o", str(out),
                  "-m", "framediff", "-q"]) == 0
@@ -565,7 +538,7 @@ def test_overwrite_does_not_remove_this_runs_input(sequence: Path, tmp_path: Pat
 @pytest.fixture
 def short_input(tmp_path: Path) -> Tuple[Path, Path]:
     """``(frames, gt)``: 6 frames of a 12-frame sequence whose temporal ROI is 3-12."""
-    gt = write_sequence(tmp_path / "famA_long", n_frames=12, speed=3, temporal_roi="3 12")
+    gt = write_input_sequence(tmp_path / "famA_long", n_frames=12, speed=3, temporal_roi="3 12")
     frames = tmp_path / "short"
     frames.mkdir()
     for k in range(1, 7):
@@ -629,10 +602,10 @@ def test_input_ending_early_without_a_stated_length_is_scored_the_same(
 def test_dataset_sequences_with_short_inputs_warn(tmp_path: Path) -> None:
     root = tmp_path / "data"
     for name, roi in (("famA_cut", "1 8"), ("famA_late", "5 8")):
-        seq = write_sequence(root / name, temporal_roi=roi)
+        seq = write_input_sequence(root / name, temporal_roi=roi)
         for k in range(4, 9):  # input/ holds frames 1-3 of the 8 in groundtruth/
             (seq / "input" / f"in{k:06d}.png").unlink()
-    write_sequence(root / "famB_whole", seed=1)
+    write_input_sequence(root / "famB_whole", seed=1)
     report = compare_methods(root, methods=["framediff"])
     assert report.warnings == [
         "famA_cut: scored 3 of 8 ground-truth frames (1-8): the input ends at frame 3",

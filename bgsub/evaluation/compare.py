@@ -160,6 +160,23 @@ def _read_paths(jobs: Sequence[_Job]) -> List[Path]:
 # --------------------------------------------------------------------------------------------
 
 
+@dataclass(frozen=True)
+class _RunOptions:
+    """How every input of one compare run is read, processed, scored and written (the
+    arguments of :func:`compare_methods` of those names)."""
+
+    source: Dict[str, Any]  # open_source's start, stop, step, scale, width, fps
+    max_frames: Optional[int]
+    skip_first: bool
+    ignore_roi_bmp: bool
+    masks: str
+    video: bool
+    tile_height: int
+    overwrite: bool
+    quiet: bool
+    tolerate_empty: bool  # a dataset: an input with nothing to score is noted, not refused
+
+
 @dataclass
 class _Scoring:
     """Ground truth of one input and the frame numbers (1-based) to score."""
@@ -239,13 +256,13 @@ def _scoring(job: _Job, info: VideoInfo, *, start: int, stop: Optional[int], ste
     return _Scoring(gt, numbers, resize, requested), list(gt.notes), warnings
 
 
-def _run_job(job: _Job, methods: Sequence[str], params: Mapping[str, Mapping[str, Any]], *,
-             source_options: Dict[str, Any], max_frames: Optional[int], skip_first: bool,
-             ignore_roi_bmp: bool, masks: str, video: bool, tile_height: int, overwrite: bool,
-             quiet: bool, tolerate_empty: bool, written: "RunOutputs"
-             ) -> Tuple[List[ComparisonRow], List[str]]:
+def _run_job(job: _Job, methods: Sequence[str], params: Mapping[str, Mapping[str, Any]],
+             run: _RunOptions, written: RunOutputs) -> Tuple[List[ComparisonRow], List[str]]:
     """Run ``methods`` on one input; returns its rows and the warnings for stderr."""
-    options = dict(source_options)
+    max_frames, skip_first, ignore_roi_bmp = run.max_frames, run.skip_first, run.ignore_roi_bmp
+    masks, video, tile_height, overwrite = run.masks, run.video, run.tile_height, run.overwrite
+    quiet, tolerate_empty = run.quiet, run.tolerate_empty
+    options = dict(run.source)
     start, step = options["start"], options["step"]
     if max_frames is not None:
         limit = start + max_frames * step
@@ -490,28 +507,9 @@ def compare_methods(
     OutputError
         ``report_dir`` exists and is not empty (without ``overwrite``), or cannot be written.
     """
+    names, params = _checked_methods(methods, params)
+    _check_options(masks=masks, max_frames=max_frames, tile_height=tile_height)
     input_text = str(input_path)
-    names = list(methods) if methods else [spec.name for spec in available_engines()]
-    if not names:
-        raise InputError("no methods to compare")
-    duplicates = sorted({m for m in names if names.count(m) > 1})
-    if duplicates:
-        raise InputError(f"method {duplicates[0]!r} is listed twice")
-    params = dict(params or {})
-    for method in params:
-        if method not in names:
-            raise InputError(f"parameters given for {method!r}, which is not among the methods")
-    for method in names:
-        # Built once here so an unknown method, a bad parameter or a missing model file fails
-        # before anything is decoded or written.
-        get_engine_spec(method).create(**params.get(method, {}))
-    if masks not in MASK_FORMATS:
-        raise InputError(f"masks must be one of {', '.join(MASK_FORMATS)}, not {masks!r}")
-    if max_frames is not None and max_frames < 1:
-        raise InputError(f"max_frames must be at least 1, not {max_frames}")
-    if tile_height < 16:
-        raise InputError(f"tile height must be at least 16 pixels, not {tile_height}")
-
     out = Path(report_dir) if report_dir is not None else None
     jobs, is_dataset, plan_notes = _plan(input_text, gt, out)
     ignore_roi = is_dataset if ignore_roi_bmp is None else bool(ignore_roi_bmp)
@@ -519,8 +517,11 @@ def compare_methods(
         if job.gt is not None:
             open_ground_truth(job.gt, ignore_roi_bmp=ignore_roi)
     created = check_report_dir(report_dir, overwrite) if out is not None else None
-    source_options = dict(start=start, stop=stop, step=step, scale=scale, width=width, fps=fps)
-
+    options = _RunOptions(
+        source=dict(start=start, stop=stop, step=step, scale=scale, width=width, fps=fps),
+        max_frames=max_frames, skip_first=skip_first, ignore_roi_bmp=ignore_roi, masks=masks,
+        video=video, tile_height=tile_height, overwrite=overwrite, quiet=quiet,
+        tolerate_empty=is_dataset)
     report = ComparisonReport(
         input=input_text, methods=names, report_dir=str(out) if out else None,
         settings={
@@ -532,27 +533,9 @@ def compare_methods(
     # With overwrite, the previous run's outputs go once the first input is accepted (so a
     # mistyped --gt or a frame-size mismatch leaves them in place), and only they.
     written = RunOutputs(out, overwrite=overwrite, methods=names, protect=_read_paths(jobs))
-    outer = progress(jobs, total=len(jobs), desc="sequences", quiet=quiet or not is_dataset,
-                     unit="seq")
-    stopped: Optional[KeyboardInterrupt] = None
     try:
-        for job in outer:
-            try:
-                rows, warnings = _run_job(
-                    job, names, params, source_options=source_options, max_frames=max_frames,
-                    skip_first=skip_first, ignore_roi_bmp=ignore_roi, masks=masks, video=video,
-                    tile_height=tile_height, overwrite=overwrite, quiet=quiet,
-                    tolerate_empty=is_dataset, written=written)
-            except _Partial as partial:
-                rows, warnings, stopped = partial.rows, partial.warnings, partial.stop
-            except KeyboardInterrupt as stop:  # before the job's first frame
-                if not report.rows:
-                    raise
-                rows, warnings, stopped = [], [], stop
-            report.rows.extend(rows)
-            report.warnings.extend(warnings)
-            if stopped is not None:
-                break
+        stopped = _run_jobs(jobs, names, params, options, report, written,
+                            quiet=quiet or not is_dataset)
     except (BgsubError, KeyboardInterrupt):  # refused or stopped before any result
         if created is not None:
             remove_if_no_files(created)
@@ -574,3 +557,56 @@ def compare_methods(
         stopped.report = report  # type: ignore[attr-defined]
         raise stopped
     return report
+
+
+def _checked_methods(methods: Optional[Sequence[str]],
+                     params: Optional[Mapping[str, Mapping[str, Any]]]
+                     ) -> Tuple[List[str], Dict[str, Mapping[str, Any]]]:
+    """``(names, params)``: the methods (default: every registered engine) and their
+    parameters, each engine built once so that an unknown method, a bad parameter or a
+    missing model file fails before anything is decoded or written."""
+    names = list(methods) if methods else [spec.name for spec in available_engines()]
+    if not names:
+        raise InputError("no methods to compare")
+    duplicates = sorted({m for m in names if names.count(m) > 1})
+    if duplicates:
+        raise InputError(f"method {duplicates[0]!r} is listed twice")
+    params = dict(params or {})
+    for method in params:
+        if method not in names:
+            raise InputError(f"parameters given for {method!r}, which is not among the methods")
+    for method in names:
+        get_engine_spec(method).create(**params.get(method, {}))
+    return names, params
+
+
+def _check_options(*, masks: str, max_frames: Optional[int], tile_height: int) -> None:
+    if masks not in MASK_FORMATS:
+        raise InputError(f"masks must be one of {', '.join(MASK_FORMATS)}, not {masks!r}")
+    if max_frames is not None and max_frames < 1:
+        raise InputError(f"max_frames must be at least 1, not {max_frames}")
+    if tile_height < 16:
+        raise InputError(f"tile height must be at least 16 pixels, not {tile_height}")
+
+
+def _run_jobs(jobs: Sequence[_Job], names: Sequence[str],
+              params: Mapping[str, Mapping[str, Any]], options: "_RunOptions",
+              report: ComparisonReport, written: RunOutputs, *, quiet: bool
+              ) -> Optional[KeyboardInterrupt]:
+    """Run every job, adding its rows and warnings to ``report``; returns the interrupt that
+    stopped them (after the rows of the frames processed), or None."""
+    for job in progress(jobs, total=len(jobs), desc="sequences", quiet=quiet, unit="seq"):
+        stopped = None
+        try:
+            rows, warnings = _run_job(job, names, params, options, written)
+        except _Partial as partial:
+            rows, warnings, stopped = partial.rows, partial.warnings, partial.stop
+        except KeyboardInterrupt as stop:  # before the job's first frame
+            if not report.rows:
+                raise
+            rows, warnings, stopped = [], [], stop
+        report.rows.extend(rows)
+        report.warnings.extend(warnings)
+        if stopped is not None:
+            return stopped
+    return None

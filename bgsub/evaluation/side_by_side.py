@@ -6,10 +6,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Sequence, Tuple
+from typing import Any, Optional, Sequence, Tuple
 
 import cv2
 import numpy as np
+
+from bgsub.io.loop import Consumer, FrameResult
 
 # Side-by-side tiles are shrunk (never enlarged) to at most this height, and the whole picture
 # to at most this width. OpenCV's mp4v writer has no bitrate control (about 0.26 bytes per pixel
@@ -94,3 +96,27 @@ def _draw_label(tile: np.ndarray, text: str) -> None:
     (tw, th), base = cv2.getTextSize(text, font, scale, thickness)
     cv2.rectangle(tile, (0, 0), (min(tile.shape[1] - 1, tw + 6), th + base + 5), (0, 0, 0), -1)
     cv2.putText(tile, text, (3, th + 3), font, scale, (0, 255, 255), thickness, cv2.LINE_AA)
+
+
+class SideBySideWriter(Consumer):
+    """A consumer of :class:`bgsub.io.loop.FrameLoop` that writes, per frame, the input and
+    the masks of ``methods`` (in that order) as one picture laid out by ``layout`` into
+    ``sink`` (a :class:`bgsub.io.sinks.VideoSink` of the layout's size), and finishes the sink
+    when the run ends."""
+
+    def __init__(self, sink: Any, layout: TileLayout, methods: Sequence[str]) -> None:
+        self.sink = sink
+        self.layout = layout
+        self.methods = list(methods)
+        self._picture: Optional[np.ndarray] = None
+
+    def prepare(self, result: FrameResult) -> None:
+        # Drawn before any output is written: an interrupt here leaves the frame out of all.
+        self._picture = self.layout.compose(result.frame,
+                                            [result.masks[m] for m in self.methods])
+
+    def add(self, result: FrameResult) -> None:
+        self.sink.write(self._picture)
+
+    def close(self, *, complete: bool, error: Optional[BaseException]) -> None:
+        self.sink.finish(complete=complete, error=error)

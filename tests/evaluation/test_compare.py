@@ -586,28 +586,33 @@ def test_asking_for_fewer_frames_draws_no_warning(short_input, options) -> None:
     assert not any("the input ends" in n for n in report.rows[0].notes)
 
 
-def test_input_ending_early_without_a_stated_length_is_scored_the_same(
-        short_input, monkeypatch) -> None:
-    # A video that does not say how long it is (or says it wrongly): the end is found by
-    # reading, and the frames never read are not scored either.
-    import dataclasses
+def _mjpeg(frames: Path, path: Path) -> Path:
+    """The PNG frames of the folder ``frames`` as an MJPEG video at ``path``: ``.avi`` states
+    its length, a raw ``.mjpeg`` stream states none."""
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 25.0, (W, H))
+    for png in sorted(frames.glob("*.png")):
+        writer.write(cv2.imread(str(png)))
+    writer.release()
+    return path
 
-    import bgsub.evaluation.compare as compare_module
+
+def test_input_ending_early_without_a_stated_length_is_scored_the_same(
+        short_input, tmp_path: Path) -> None:
+    # A video that does not say how long it is: the end is found by reading, and the frames
+    # never read are not scored either.
+    from bgsub.io.sources import open_source
 
     frames, gt = short_input
-    known = compare_methods(frames, gt=gt, methods=["framediff"])
-    real_open = compare_module.open_source
-
-    def lying_open(*args, **kwargs):
-        source = real_open(*args, **kwargs)
-        source.info = dataclasses.replace(source.info, frame_count=None)
-        return source
-
-    monkeypatch.setattr(compare_module, "open_source", lying_open)
-    unknown = compare_methods(frames, gt=gt, methods=["framediff"])
+    stated = _mjpeg(frames, tmp_path / "short.avi")
+    unstated = _mjpeg(frames, tmp_path / "short.mjpeg")
+    with open_source(str(unstated)) as source:
+        assert source.info.frame_count is None
+    known = compare_methods(stated, gt=gt, methods=["framediff"])
+    unknown = compare_methods(unstated, gt=gt, methods=["framediff"])
     assert unknown.rows[0].eval_frames == known.rows[0].eval_frames == 4
     assert unknown.rows[0].counts == known.rows[0].counts
-    assert unknown.warnings == known.warnings and len(known.warnings) == 1
+    assert [w.replace(".mjpeg", ".avi") for w in unknown.warnings] == known.warnings
+    assert len(known.warnings) == 1
 
 
 def test_dataset_sequences_with_short_inputs_warn(tmp_path: Path) -> None:

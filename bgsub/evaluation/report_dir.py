@@ -12,6 +12,7 @@ from typing import List, Optional, Sequence, Tuple, Union
 from bgsub.engines import available_engines
 from bgsub.errors import OutputError, given_path
 from bgsub.evaluation.compare_report import REPORT_FILES
+from bgsub.io.outputs import MASK_NAME, PARTIAL_MASK_NAME, partial_path
 from bgsub.io.sinks import names_a_folder
 
 PathLike = Union[str, "Path"]
@@ -208,8 +209,6 @@ def _previous_files(root: Path, candidates: Sequence[str], names: Sequence[str]
     """``(files, mask folders)`` to remove among the ``candidates`` paths (relative to
     ``root``): a mask folder's ``binNNNNNN.png`` files, a video's or report's file and the
     temporary file an interrupted writer leaves. Symbolic links are left alone."""
-    from bgsub.io.sinks import _MASK_NAME, _PARTIAL_MASK_NAME
-
     files: List[Path] = []
     folders: List[Path] = []  # mask folders, removed once empty
     for rel in dict.fromkeys(candidates):
@@ -223,13 +222,13 @@ def _previous_files(root: Path, candidates: Sequence[str], names: Sequence[str]
             except OSError as err:
                 raise OutputError(f"cannot read {path}: {err.strerror}") from None
             files += [entry for entry in entries if not entry.is_symlink() and entry.is_file()
-                      and (_MASK_NAME.fullmatch(entry.name)
-                           or _PARTIAL_MASK_NAME.fullmatch(entry.name))]
+                      and (MASK_NAME.fullmatch(entry.name)
+                           or PARTIAL_MASK_NAME.fullmatch(entry.name))]
             folders.append(path)
         elif name in REPORT_FILES or name == SIDE_BY_SIDE \
                 or (name.endswith(".mkv") and name[:-len(".mkv")] in names):
-            # The file, and the one an interrupted video writer leaves (sinks._partial_path).
-            partial = path.with_name(f".{path.stem}.partial{path.suffix}")
+            # The file, and the one an interrupted video writer leaves.
+            partial = partial_path(path)
             files += [p for p in (path, partial) if p.is_file() and not p.is_symlink()]
     return files, folders
 

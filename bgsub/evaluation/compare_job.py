@@ -42,7 +42,6 @@ class Job:
     out: Optional[Path]  # folder for this input's masks and video, None = write nothing
 
 
-
 @dataclass(frozen=True)
 class RunOptions:
     """How every input of one compare run is read, processed, scored and written (the
@@ -126,17 +125,23 @@ def _scoring(job: Job, info: VideoInfo, *, start: int, stop: Optional[int], step
         return None, [f"not scored: {message}"], [f"{job.name}: not scored: {message}"]
     resize = (gt.width, gt.height) if (info.width, info.height) != (gt.width, gt.height) \
         else None
-    warnings = []
-    input_end = (start + (info.frame_count - 1) * step + 1 if info.frame_count is not None
-                 else None)
-    gt_end = gt.sequence_end  # None: sparse ground truth, or a window; it states no end
-    if stop is None and input_end is not None and gt_end is not None and input_end > gt_end:
-        # As `bgsub eval` says of masks past the ground truth: often another clip's frames.
-        warnings.append(f"{job.name}: {job.frames} holds frames up to {input_end}, past the "
-                        f"ground truth's last ({max(gt.frames)} in {job.gt}): check that the "
-                        "ground truth belongs to this input; only frames with ground truth "
-                        "are scored")
+    warnings = [] if stop is not None else _past_gt_end(job, gt, info, start=start, step=step)
     return _Scoring(gt, numbers, resize, requested), list(gt.notes), warnings
+
+
+def _past_gt_end(job: Job, gt: GroundTruth, info: VideoInfo, *, start: int,
+                 step: int) -> List[str]:
+    """The warning for an input whose stated length goes past the end its ground truth states
+    (as `bgsub eval` says of masks past the ground truth: often another clip's frames)."""
+    gt_end = gt.sequence_end  # None: sparse ground truth, or a window; it states no end
+    if info.frame_count is None or gt_end is None:
+        return []
+    input_end = start + (info.frame_count - 1) * step + 1
+    if input_end <= gt_end:
+        return []
+    return [f"{job.name}: {job.frames} holds frames up to {input_end}, past the ground truth's "
+            f"last ({max(gt.frames)} in {job.gt}): check that the ground truth belongs to this "
+            "input; only frames with ground truth are scored"]
 
 
 def run_job(job: Job, methods: Sequence[str], params: Mapping[str, Mapping[str, Any]],

@@ -16,11 +16,14 @@ from bgsub.io.outputs import frames_text, say
 
 
 def stop_reason(exc_type: Optional[type]) -> str:
+    """How a sink's message names what stopped the run of an exception of ``exc_type``."""
     return "interrupted" if exc_type is not None and issubclass(exc_type, KeyboardInterrupt) \
         else "stopped by an error"
 
 
 def check_image(image: np.ndarray, *, ndims: Tuple[int, ...], what: str) -> None:
+    """``ValueError`` naming ``what`` unless ``image`` is a uint8 array of one of ``ndims``
+    dimensions: ``(H, W)`` (2) or ``(H, W, 3)`` (3)."""
     if not isinstance(image, np.ndarray) or image.dtype != np.uint8 or image.ndim not in ndims \
             or (image.ndim == 3 and image.shape[2] != 3):
         shape = getattr(image, "shape", None)

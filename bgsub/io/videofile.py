@@ -70,6 +70,9 @@ class VideoFile:
         self.size = (width, height)  # of the pictures written; the file's is padded to even
 
     def write(self, image: np.ndarray) -> None:
+        """Add ``image``, ``(H, W)`` gray or ``(H, W, 3)`` BGR uint8 as the video was opened
+        for; a write OpenCV reports failed finishes the video and raises
+        :class:`ProcessingError`."""
         assert self._writer is not None, "write() before open()"
         # A failed write (full disk) would log an OpenCV warning for every frame from then on.
         with quiet_opencv():
@@ -159,6 +162,7 @@ def readable_frames(path: Path, limit: int) -> int:
 
 
 def free_bytes(folder: Path) -> int:
+    """Free bytes on the file system of ``folder`` (:data:`DISK_FULL_BYTES` when unknown)."""
     try:
         return shutil.disk_usage(folder).free
     except OSError:

@@ -492,7 +492,7 @@ def test_overwrite_clears_a_dataset_roots_sequence_folders(tmp_path: Path) -> No
 @pytest.mark.parametrize("dataset", [False, True])
 def test_overwrite_without_a_report_json_goes_by_compares_names(tmp_path: Path,
                                                                  dataset: bool) -> None:
-    # An interrupted run (or an older bgsub) leaves outputs but no report.json listing them.
+    # An interrupted run leaves outputs but no report.json listing them.
     root = tmp_path / "data"
     seq = write_input_sequence(root / "cat" / "famA_one")
     source = root if dataset else seq

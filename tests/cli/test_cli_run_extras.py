@@ -44,7 +44,22 @@ class _Recording(_Oracle):
         _Recording.built = params
 
 
+class _Stopping(_Oracle):
+    """The oracle, acting as if Ctrl-C came while its sixth frame was processed."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.seen = 0
+
+    def apply(self, image, fgmask=None, learning_rate=-1.0):
+        self.seen += 1
+        if self.seen == 6:
+            raise KeyboardInterrupt
+        return super().apply(image)
+
+
 register_engine("_test_oracle", "test: the clip's ground truth")(_Oracle)
+register_engine("_test_stopping", "test: Ctrl-C at the sixth frame")(_Stopping)
 register_engine("_test_recording", "test: records its parameters", params={
     "count": Param(3, "an integer", low=1),
     "rate": Param(0.5, "a number", low=0.0, high=1.0),
@@ -140,6 +155,17 @@ def test_json_prints_one_summary_object(clip, tmp_path, capsys):
     assert summary["outputs"] == {"masks": str(tmp_path / "masks"),
                                   "objects": str(tmp_path / "o.csv")}
     assert summary["method"] == "_test_oracle" and summary["fps"] > 0
+
+
+def test_json_after_ctrl_c_says_what_the_partial_outputs_hold(clip, tmp_path, capsys):
+    folder, _ = clip
+    code = main(["run", str(folder), "-o", str(tmp_path / "masks"), "-m", "_test_stopping",
+                 "-q", "--json", "--objects", str(tmp_path / "o.jsonl")])
+    summary = json.loads(capsys.readouterr().out)
+    assert code == 130
+    assert summary["frames"] == 5 and summary["complete"] is False
+    assert len(_jsonl(tmp_path / "o.jsonl")) == 5
+    assert len(list((tmp_path / "masks").glob("bin*.png"))) == 5
 
 
 def _run_config(clip, tmp_path, text, *extra):

@@ -57,9 +57,11 @@ examples:
   bgsub run 'frames/*.png' -o masks/ --start 100 --stop 400 --step 2 --width 320
   bgsub run clip.mp4 -o masks.mkv --flow-vis flow.mp4  the engine's motion field and camera fit
   bgsub run clip.mp4 -o masks.mkv --motion cam.npy     the estimated camera motion of every frame
-  bgsub run clip.mp4 -o masks.mkv --objects obj.jsonl --vis overlay.mp4   tracked objects, drawn
-  bgsub run clip.mp4 -o masks.mkv --config grbm.toml --json   parameters from a file; a JSON summary
+  bgsub run clip.mp4 -o masks.mkv --objects objects.jsonl --vis overlay.mp4
+  bgsub run clip.mp4 -o masks.mkv --config grbm.toml --json
 
+--objects writes the tracked objects of every frame (and --vis draws their boxes and ids);
+--config reads engine parameters from a TOML file; --json prints a summary for scripts.
 `bgsub methods` lists the engines and their parameters."""
 
 

@@ -47,6 +47,7 @@ examples:
 _PICTURE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp"}
 _ARROW_STEP = 16  # default of --arrow-step
 _MAX_MOTION = 20.0  # default of --max-motion
+_STRIDE = 6  # default of --stride
 _READOUTS = ("patch", "max-flow")
 
 
@@ -88,9 +89,10 @@ def register(subparsers: Any) -> None:
     est.add_argument("--levels", type=int, default=None, metavar="N",
                      help="pyramid levels, at least 1 (default: enough for --max-motion; "
                           "1 = no pyramid; patch readout)")
-    est.add_argument("--stride", type=int, default=6, metavar="PX",
+    est.add_argument("--stride", type=int, default=None, metavar="PX",
                      help="patch grid step, at least 1 (at most the patch size with max-flow) "
-                          "(default 6; smaller = finer field, slower)")
+                          f"(default {_STRIDE}, or the patch size if smaller; smaller = finer "
+                          "field, slower)")
     add_source_options(parser)
     add_output_options(parser, quiet_help="no progress bar and no notes on stderr (warnings "
                                           "and errors are still printed)")
@@ -119,6 +121,8 @@ def _choose_readout(args: argparse.Namespace, model: Any) -> None:
     patch readout takes a reading for a larger motion clipped."""
     if args.readout is None:
         args.readout = "max-flow" if is_binary_model(model) else "patch"
+    if args.stride is None:
+        args.stride = min(_STRIDE, int(model.patch_size))
     if args.readout == "patch":
         if is_binary_model(model):
             # One level, and motions within the model's range (readings at its edge kept).
@@ -147,7 +151,7 @@ def _check_options(args: argparse.Namespace) -> None:
     """Refuse option values and combinations that would fail late or be silently ignored."""
     if args.arrow_step < 2:
         raise InputError(f"--arrow-step must be at least 2, not {args.arrow_step}")
-    if args.stride < 1:
+    if args.stride is not None and args.stride < 1:
         raise InputError(f"--stride must be at least 1, not {args.stride}")
     if args.levels is not None and args.levels < 1:
         raise InputError(f"--levels must be at least 1 (1 = no pyramid), not {args.levels}")

@@ -173,7 +173,8 @@ class OpenCVSubtractor(Engine):
         needed = bytes_of(pixels, channels, value)
         if needed <= MODEL_BUDGET:
             return
-        fits = _largest_fitting(lambda v: bytes_of(pixels, channels, v), value * MODEL_BUDGET // needed)
+        fits = _largest_fitting(lambda v: bytes_of(pixels, channels, v),
+                                value * MODEL_BUDGET // needed)
         kind = "colour" if channels == 3 else "gray"
         advice = (f"give {param} at most {fits} for frames of this size, or smaller frames"
                   if fits else "give smaller frames")

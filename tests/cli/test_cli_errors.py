@@ -202,7 +202,7 @@ def _bgsub(*argv) -> subprocess.CompletedProcess:
 @pytest.mark.parametrize("n_samples", [100_000, 60_000])
 def test_a_knn_model_beyond_what_opencv_can_size_is_refused(corpus, tmp_path, n_samples):
     # 64x48 colour frames: OpenCV's C int holds at most 58254 samples per pixel; 100000 wraps
-    # round and crashed (SIGSEGV), 60000 asked for exabytes.
+    # round (OpenCV then crashes: SIGSEGV), 60000 asks for exabytes.
     out = tmp_path / "k.mkv"
     done = _bgsub("run", corpus / "frames", "-o", out, "-m", "knn", "-p", f"n_samples={n_samples}",
                   "-q")

@@ -28,6 +28,7 @@ import math
 import numbers
 import os
 import re
+import sys
 import threading
 import weakref
 from dataclasses import dataclass
@@ -141,6 +142,7 @@ def _native_stderr_muted(data: np.ndarray) -> Iterator[None]:
         if data[:8].tobytes() != _PNG_SIGNATURE:
             yield
             return
+        sys.stderr.flush()  # what Python holds for fd 2 goes out before it is muted
         saved, sink = os.dup(2), os.open(os.devnull, os.O_WRONLY)
         try:
             os.dup2(sink, 2)

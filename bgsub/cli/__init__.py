@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import importlib
 import itertools
 import os
@@ -251,12 +252,13 @@ def _main(argv: Optional[List[str]]) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
     except OSError as err:
-        # The environment, not a bug: a full disk, a stdout that cannot be written.
+        # The environment, not a bug: a full disk, a stdout that cannot be written. A name
+        # longer than the file system takes is the user's to shorten: exit 2, as for OutputError.
         where = f" ({err.filename})" if err.filename else ""
         print(f"bgsub: error: {err.strerror or err}{where}", file=sys.stderr)
         with contextlib.suppress(OSError):  # the final flush of a full stdout must not fail again
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return 1
+        return 2 if err.errno == errno.ENAMETOOLONG else 1
     except Exception as err:  # a bug: say so in one line unless asked for the traceback
         if os.environ.get("BGSUB_DEBUG"):
             raise

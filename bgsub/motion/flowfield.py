@@ -623,8 +623,12 @@ def estimate_flow(
             status = f"level {lvl}: {fitted.reason}"
 
     factor = 0.5**fine
+    # One level and no motion beyond the model's range expected: a reading at the edge of the
+    # range is that motion, not a larger one clipped (a random-dot model's range is 1 px).
+    edge_ok = levels == 1 and max_motion <= rng
     est = _level(pyr1[fine], pyr2[fine], _scaled(h_est, factor), model, p, fine_stride, rng,
-                 min_texture, max_patches, cache=cache, texture_scale=texture_scale)
+                 min_texture, max_patches, accept_edge=edge_ok, cache=cache,
+                 texture_scale=texture_scale)
     up = np.float32(2**fine)
     out = FlowEstimate(
         centres=est["centres"] * up, disp=est["disp"] * up, confidence=est["conf"],

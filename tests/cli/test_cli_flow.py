@@ -236,7 +236,7 @@ def test_npy_file_as_model(capsys, pair, tmp_path, bgsub_error):
 def test_a_random_dot_model_on_a_photograph_is_warned_about(pair, tmp_path, capsys):
     out = tmp_path / "f.flo"
     assert main(["flow", str(pair[0]), str(pair[1]), "-o", str(out), "-q",
-                 "--model", "dots-translation", "--max-motion", "8"]) == 0
+                 "--model", "dots-translation"]) == 0
     assert capsys.readouterr().err == (
         f"bgsub: warning: {pair[0]}: a binary (random-dot) model expects dark images with "
         "sparse bright dots; for photographs and natural video use a Gaussian model such as "

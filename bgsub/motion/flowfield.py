@@ -26,6 +26,7 @@ import numpy as np
 from numpy.lib.stride_tricks import as_strided
 
 from bgsub.errors import InputError
+from bgsub.motion.config import FlowConfig
 from bgsub.motion.global_motion import (
     GlobalMotion,
     apply_homography,
@@ -362,7 +363,7 @@ def _prepare_first(pyr1: List[np.ndarray], cache: dict, plan: _Plan, *, model: A
             cut(plan.fine, plan.pre_stride)
 
 
-def prepare_first_frame(
+def _prepare_first_frame_kw(
     frame: FramePyramid,
     *,
     model: Any,
@@ -394,6 +395,55 @@ def prepare_first_frame(
                       start_tolerance=start_tolerance)
 
 
+
+def _keywords(config: FlowConfig) -> dict:
+    """``config`` as the keyword arguments of the coarse-to-fine reader (0 = None)."""
+    if not isinstance(config, FlowConfig):
+        raise InputError(f"config must be a FlowConfig, not {type(config).__name__}")
+    out = {name: getattr(config, name) for name in (
+        "stride", "max_motion", "coarse_model", "min_texture", "texture_scale", "dense",
+        "ransac_threshold", "iterations", "search", "coarse_iterations", "finest",
+        "search_below", "start_tolerance", "converged", "start_model", "warn_range")}
+    for name in ("levels", "max_disp", "coarse_stride", "max_patches", "refine_stride"):
+        out[name] = getattr(config, name) or None
+    return out
+
+
+_PREPARE_KEYS = ("stride", "levels", "max_motion", "max_disp", "coarse_stride", "min_texture",
+                 "texture_scale", "max_patches", "iterations", "finest", "refine_stride",
+                 "start_tolerance")
+
+
+def prepare_first_frame(pyramid: FramePyramid, config: FlowConfig = FlowConfig(), *,
+                        model: Any) -> None:
+    """Do ahead of time the work :func:`estimate_flow` with the same ``config`` and ``model``
+    would do on ``pyramid`` as the *first* frame of a pair (build its pyramid; cut,
+    texture-weigh and project its patches).
+
+    The result is stored in ``pyramid`` and changes nothing in what :func:`estimate_flow`
+    returns, only how long it takes. Safe to run in a second thread while ``pyramid`` is the
+    *second* frame of another :func:`estimate_flow` call.
+    """
+    kw = _keywords(config)
+    _prepare_first_frame_kw(pyramid, model=model, **{k: kw[k] for k in _PREPARE_KEYS})
+
+
+def estimate_flow(frame1: np.ndarray, frame2: np.ndarray, config: FlowConfig = FlowConfig(), *,
+                  model: Any, prior: Optional[np.ndarray] = None) -> FlowEstimate:
+    """Patch displacements between two frames, coarse to fine, read as ``config`` says.
+
+    Parameters
+    ----------
+    frame1, frame2 : (H, W, 3) BGR or (H, W) gray uint8, (H, W) float32 gray in [0, 1], or
+        FramePyramid (reused: a video's frame serves as ``frame2`` of one call and ``frame1`` of
+        the next, and what is cut from a ``frame1`` is kept in it)
+    config : FlowConfig
+    model : bgsub.model.rbm.GatedRBM, a shipped model name or .npz path
+    prior : (3, 3) float64, optional
+        A guess of the camera motion (e.g. the previous frame's).
+    """
+    return _estimate_flow_kw(frame1, frame2, model=model, prior=prior, **_keywords(config))
+
 def _first_frame_work(frame: FramePyramid, *, model: Any, stride: int, levels: Optional[int],
                       max_motion: float, max_disp: Optional[int],
                       coarse_stride: Optional[int], min_texture: float, texture_scale: float,
@@ -414,7 +464,7 @@ def _first_frame_work(frame: FramePyramid, *, model: Any, stride: int, levels: O
     return plan, pyr, cache, p, rng
 
 
-def estimate_flow(
+def _estimate_flow_kw(
     frame1: np.ndarray,
     frame2: np.ndarray,
     *,
@@ -577,7 +627,7 @@ def estimate_flow(
         warnings.warn(f"max_motion={max_motion:g} px is out of reach on {g1.shape[1]}x"
                       f"{g1.shape[0]} frames: the {n} pyramid level{'s' * (n > 1)} their size "
                       f"allows read motions up to about {reach} px, larger ones are misread; "
-                      f"{hint}", MotionRangeWarning, stacklevel=2)
+                      f"{hint}", MotionRangeWarning, stacklevel=3)
     levels = plan.levels
     cstride, fine, fine_stride, pre_stride = (plan.coarse_stride, plan.fine, plan.fine_stride,
                                               plan.pre_stride)

@@ -566,9 +566,9 @@ def test_coarser_stride_reaches_the_flow_estimate(monkeypatch):
     seen = []
     real = pipeline.estimate_flow
 
-    def spy(*args, **kw):
-        seen.append((kw["finest"], kw["stride"]))
-        return real(*args, **kw)
+    def spy(frame1, frame2, config, **kw):
+        seen.append((config.finest, config.stride))
+        return real(frame1, frame2, config, **kw)
 
     monkeypatch.setattr(pipeline, "estimate_flow", spy)
     # coarser_below above 1: every frame is re-read coarser, even a perfectly supported one.

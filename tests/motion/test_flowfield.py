@@ -146,12 +146,10 @@ def _random_contrast_model():
     return model
 
 
-def test_refining_grid_shares_the_final_grids_first_frame_patches(monkeypatch):
+def test_refining_grid_shares_the_final_grids_first_frame_patches():
     """With refine_stride a multiple of stride, the refining readout's first-frame patches are
     taken from the final grid's (computed once); the result must be the same as cutting them
-    anew."""
-    import bgsub.motion.flowfield as ff
-
+    anew, which a max_patches above the patch count forces."""
     h, w = 96, 128
     base = _texture(h, w, seed=4)[:h, :w]
     moved = _shift(base, 1, 1, h, w)
@@ -159,8 +157,7 @@ def test_refining_grid_shares_the_final_grids_first_frame_patches(monkeypatch):
     kwargs = dict(model=model, levels=2, stride=6, iterations=2, refine_stride=12,
                   min_texture=0.0)
     shared = _flow(base, moved, **kwargs)
-    monkeypatch.setattr(ff, "_subgrid", lambda *a, **k: None)
-    fresh = _flow(base, moved, **kwargs)
+    fresh = _flow(base, moved, max_patches=10**6, **kwargs)
     np.testing.assert_array_equal(shared.valid, fresh.valid)
     np.testing.assert_allclose(shared.disp, fresh.disp, atol=1e-5)
     np.testing.assert_allclose(shared.prewarp, fresh.prewarp, atol=1e-6)
@@ -179,7 +176,7 @@ def test_coarser_refining_grid_still_recovers_a_large_pan():
 
 
 def test_level_texture_map_equals_the_tiling_texture_at_patch_centres():
-    from bgsub.motion.flowfield import _texture_map
+    from bgsub.motion.patches import level_texture_map
     from bgsub.model.tiling import patch_grid, texture_map
 
     gray = _texture(60, 80, seed=5)[:60, :80].astype(np.float32) / 255
@@ -187,7 +184,7 @@ def test_level_texture_map_equals_the_tiling_texture_at_patch_centres():
     centres, _ = patch_grid(gray.shape, patch_size=13, stride=4)
     ci = centres.astype(int)
     expected = texture_map(gray, window=13)[ci[:, 1], ci[:, 0]]
-    got = _texture_map(gray, 13)[ci[:, 1], ci[:, 0]]
+    got = level_texture_map(gray, 13)[ci[:, 1], ci[:, 0]]
     np.testing.assert_allclose(got, expected, rtol=1e-4, atol=1e-9)
     assert expected.max() > 1e-4 and got.min() >= 0.0
 
@@ -235,15 +232,19 @@ class ClippingMatcher(OracleMatcher):
 def test_start_candidates_get_no_support_from_clipped_readings():
     """A wrong start (beyond the model's range from the true motion) reads the edge of the
     range everywhere, a consistent but meaningless group; it must not win over the right one."""
-    from bgsub.motion.flowfield import _best_start
+    from bgsub.motion.patches import PatchGrids
+    from bgsub.motion.starts import StartSearch
 
     h, w = 96, 128
     base = _texture(h, w, seed=7)[:h, :w]
     moved = _shift(base, 2, 0, h, w)
     g1, g2 = base.astype(np.float32) / 255, moved.astype(np.float32) / 255
     wrong = np.array([[1.0, 0, -3.0], [0, 1.0, 0], [0, 0, 1]])  # residual 5: read as 3
-    chosen, support, _, _ = _best_start(g1, g2, [wrong, np.eye(3)], 1.0, ClippingMatcher(), 13,
-                                        8, 3, 0.0, None, "affine", 1.0, np.eye(3))
+    model = ClippingMatcher()
+    grids = PatchGrids(model, min_texture=0.0, max_patches=None, texture_scale=2e-3)
+    search = StartSearch(g1, g2, level=0, grids=grids, stride=8, model=model, max_disp=3,
+                         fit_model="affine", threshold=1.0, tolerance=0.0)
+    chosen = search.best([wrong, np.eye(3)], fallback=np.eye(3)).motion
     assert abs(chosen[0, 2] - 2) < 0.5, chosen
 
 
@@ -323,7 +324,7 @@ class NoMotionMatcher(OracleMatcher):
 
 
 def test_photometric_agreement_is_high_only_under_the_true_motion():
-    from bgsub.motion.flowfield import photometric_agreement
+    from bgsub.motion.starts import photometric_agreement
 
     h, w = 96, 128
     base = _texture(h, w, seed=5)[:h, :w].astype(np.float32) / 255
@@ -335,7 +336,7 @@ def test_photometric_agreement_is_high_only_under_the_true_motion():
 
 def test_photometric_agreement_counts_pixels_mapped_outside_as_disagreeing():
     """A motion that maps half the frame outside the other explains only the half it keeps."""
-    from bgsub.motion.flowfield import photometric_agreement
+    from bgsub.motion.starts import photometric_agreement
 
     h, w = 96, 128
     base = _texture(h, w, seed=6)[:h, :w].astype(np.float32) / 255

@@ -13,7 +13,7 @@ import cv2
 import numpy as np
 import pytest
 
-from conftest import OracleMatcher
+from conftest import OracleMatcher, random_texture, shifted
 from bgsub.errors import InputError, ModelError
 from bgsub.motion import FlowConfig
 from bgsub.motion.flowfield import FlowEstimate, dense_from_patches, estimate_flow
@@ -24,22 +24,10 @@ def _flow(frame1, frame2, *, model, prior=None, **settings):
     return estimate_flow(frame1, frame2, FlowConfig(**settings), model=model, prior=prior)
 
 
-def _texture(h, w, seed=0):
-    rng = np.random.default_rng(seed)
-    img = rng.random((h // 4 + 1, w // 4 + 1)).astype(np.float32)
-    img = cv2.resize(img, (w + 8, h + 8), interpolation=cv2.INTER_CUBIC)
-    return (np.clip(img, 0, 1) * 255).astype(np.uint8)
-
-
-def _shift(img, dx, dy, h, w):
-    m = np.float32([[1, 0, dx], [0, 1, dy]])
-    return cv2.warpAffine(img, m, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
-
-
 def test_small_shift_recovered_at_one_level():
     h, w = 96, 128
-    base = _texture(h, w)[:h, :w]
-    moved = _shift(base, 2, -1, h, w)
+    base = random_texture(h, w)[:h, :w]
+    moved = shifted(base, 2, -1, h, w)
     flow = _flow(base, moved, model=OracleMatcher(), levels=1, min_texture=0.0)
     inner = flow.valid & (flow.centres[:, 0] > 10) & (flow.centres[:, 0] < w - 10)
     assert inner.sum() > 20
@@ -48,8 +36,8 @@ def test_small_shift_recovered_at_one_level():
 
 def test_large_pan_recovered_coarse_to_fine():
     h, w = 192, 256
-    base = _texture(h, w, seed=1)[:h, :w]
-    moved = _shift(base, 11, 4, h, w)  # far beyond the +-3 px of one level
+    base = random_texture(h, w, seed=1)[:h, :w]
+    moved = shifted(base, 11, 4, h, w)  # far beyond the +-3 px of one level
     one = _flow(base, moved, model=OracleMatcher(), levels=1, min_texture=0.0)
     c2f = _flow(base, moved, model=OracleMatcher(), levels=3, min_texture=0.0)
     inner = (c2f.centres[:, 0] > 20) & (c2f.centres[:, 0] < w - 20)
@@ -61,8 +49,8 @@ def test_large_pan_recovered_coarse_to_fine():
 
 def test_dense_field_full_size_and_nan_where_unknown():
     h, w = 90, 124
-    base = _texture(h, w, seed=2)[:h, :w]
-    moved = _shift(base, -2, 1, h, w)
+    base = random_texture(h, w, seed=2)[:h, :w]
+    moved = shifted(base, -2, 1, h, w)
     flow = _flow(base, moved, model=OracleMatcher(), levels=1, dense=True,
                          min_texture=0.0)
     d = flow.dense
@@ -128,8 +116,8 @@ def test_gated_rbm_reads_shift_of_random_dots():
 
 def test_final_readout_at_a_coarser_level_is_in_full_resolution_pixels():
     h, w = 192, 256
-    base = _texture(h, w, seed=3)[:h, :w]
-    moved = _shift(base, 6, -2, h, w)
+    base = random_texture(h, w, seed=3)[:h, :w]
+    moved = shifted(base, 6, -2, h, w)
     flow = _flow(base, moved, model=OracleMatcher(), levels=3, finest=1, stride=8,
                          min_texture=0.0)
     inner = flow.valid & (flow.centres[:, 0] > 20) & (flow.centres[:, 0] < w - 20)
@@ -151,8 +139,8 @@ def test_refining_grid_shares_the_final_grids_first_frame_patches():
     taken from the final grid's (computed once); the result must be the same as cutting them
     anew, which a max_patches above the patch count forces."""
     h, w = 96, 128
-    base = _texture(h, w, seed=4)[:h, :w]
-    moved = _shift(base, 1, 1, h, w)
+    base = random_texture(h, w, seed=4)[:h, :w]
+    moved = shifted(base, 1, 1, h, w)
     model = _random_contrast_model()
     kwargs = dict(model=model, levels=2, stride=6, iterations=2, refine_stride=12,
                   min_texture=0.0)
@@ -165,8 +153,8 @@ def test_refining_grid_shares_the_final_grids_first_frame_patches():
 
 def test_coarser_refining_grid_still_recovers_a_large_pan():
     h, w = 192, 256
-    base = _texture(h, w, seed=1)[:h, :w]
-    moved = _shift(base, 11, 4, h, w)
+    base = random_texture(h, w, seed=1)[:h, :w]
+    moved = shifted(base, 11, 4, h, w)
     flow = _flow(base, moved, model=OracleMatcher(), levels=3, iterations=2, stride=8,
                          refine_stride=16, min_texture=0.0)
     inner = (flow.centres[:, 0] > 20) & (flow.centres[:, 0] < w - 20)
@@ -179,7 +167,7 @@ def test_level_texture_map_equals_the_tiling_texture_at_patch_centres():
     from bgsub.motion.patches import level_texture_map
     from bgsub.model.tiling import patch_grid, texture_map
 
-    gray = _texture(60, 80, seed=5)[:60, :80].astype(np.float32) / 255
+    gray = random_texture(60, 80, seed=5)[:60, :80].astype(np.float32) / 255
     gray[:, :25] = 0.3
     centres, _ = patch_grid(gray.shape, patch_size=13, stride=4)
     ci = centres.astype(int)
@@ -207,8 +195,8 @@ def test_coarsest_level_is_read_until_it_converges(with_prior, converged):
     counts as the first). Every readout moves the fit by a pixel or more, so stopping at
     convergence (``converged``) must not cut the re-reads short."""
     h, w = 192, 256
-    base = _texture(h, w, seed=6)[:h, :w]
-    moved = _shift(base, 6, 0, h, w)  # 3 px at the coarser of 2 levels
+    base = random_texture(h, w, seed=6)[:h, :w]
+    moved = shifted(base, 6, 0, h, w)  # 3 px at the coarser of 2 levels
     prior = np.eye(3) if with_prior else None
 
     def prewarp_x(coarse_iterations):
@@ -236,8 +224,8 @@ def test_start_candidates_get_no_support_from_clipped_readings():
     from bgsub.motion.starts import StartSearch
 
     h, w = 96, 128
-    base = _texture(h, w, seed=7)[:h, :w]
-    moved = _shift(base, 2, 0, h, w)
+    base = random_texture(h, w, seed=7)[:h, :w]
+    moved = shifted(base, 2, 0, h, w)
     g1, g2 = base.astype(np.float32) / 255, moved.astype(np.float32) / 255
     wrong = np.array([[1.0, 0, -3.0], [0, 1.0, 0], [0, 0, 1]])  # residual 5: read as 3
     model = ClippingMatcher()
@@ -252,10 +240,10 @@ def test_smaller_texture_scale_weighs_weak_texture_alike_and_still_drops_flat_pa
     """``texture_scale`` sets where the texture weight reaches 0.5: a small one lets a
     low-contrast (blurred) texture count like a strong one, while flat patches stay out."""
     h, w = 96, 128
-    base = _texture(h, w, seed=3)[:h, :w].astype(np.float32) / 255
+    base = random_texture(h, w, seed=3)[:h, :w].astype(np.float32) / 255
     weak = (0.5 + 0.1 * (base - base.mean())).astype(np.float32)  # a tenth of the contrast
     weak[:, :40] = 0.5  # flat band
-    moved = _shift(weak, 1, 0, h, w)
+    moved = shifted(weak, 1, 0, h, w)
     strong = lambda f: f.texture[f.centres[:, 0] > 60]  # noqa: E731
     flat = lambda f: f.texture[f.centres[:, 0] < 30]  # noqa: E731
     large = _flow(weak, moved, model=OracleMatcher(), levels=1, min_texture=0.0,
@@ -273,9 +261,9 @@ def test_a_shake_beyond_the_range_is_found_by_the_grid_of_starts(search_below, g
     grid of shifted starts, which is read only when the start's support is below
     ``search_below``."""
     h, w = 128, 160
-    base = _texture(h, w, seed=4)[:h, :w]
+    base = random_texture(h, w, seed=4)[:h, :w]
     # 4 px at level 1: beyond the matcher's +-3 (clipped), 2 px from the grid's +4 px start.
-    moved = _shift(base, 8, 0, h, w)
+    moved = shifted(base, 8, 0, h, w)
     model = CountingMatcher()
     flow = _flow(base, moved, model=model, levels=2, stride=8, min_texture=0.0, search=1,
                  coarse_iterations=1, search_below=search_below, prior=np.eye(3))
@@ -289,8 +277,8 @@ def test_the_grid_of_starts_is_read_only_without_a_supported_start(prior, grid_r
     """With a prior whose start most patches agree with, the grid is not read; on a first
     frame (no prior) it always is."""
     h, w = 128, 160
-    base = _texture(h, w, seed=4)[:h, :w]
-    moved = _shift(base, 2, 0, h, w)
+    base = random_texture(h, w, seed=4)[:h, :w]
+    moved = shifted(base, 2, 0, h, w)
     kw = dict(levels=2, stride=8, min_texture=0.0, search=1, prior=prior)
     counts = []
     for search_below in (0.5, 1.0):
@@ -327,8 +315,8 @@ def test_photometric_agreement_is_high_only_under_the_true_motion():
     from bgsub.motion.starts import photometric_agreement
 
     h, w = 96, 128
-    base = _texture(h, w, seed=5)[:h, :w].astype(np.float32) / 255
-    moved = _shift(base, 3, -2, h, w)
+    base = random_texture(h, w, seed=5)[:h, :w].astype(np.float32) / 255
+    moved = shifted(base, 3, -2, h, w)
     truth = np.array([[1.0, 0, 3], [0, 1.0, -2], [0, 0, 1]])
     assert photometric_agreement(base, moved, truth, tolerance=0.015) > 0.9
     assert photometric_agreement(base, moved, np.eye(3), tolerance=0.015) < 0.3
@@ -339,7 +327,7 @@ def test_photometric_agreement_counts_pixels_mapped_outside_as_disagreeing():
     from bgsub.motion.starts import photometric_agreement
 
     h, w = 96, 128
-    base = _texture(h, w, seed=6)[:h, :w].astype(np.float32) / 255
+    base = random_texture(h, w, seed=6)[:h, :w].astype(np.float32) / 255
     flat = np.full_like(base, 0.5)
     half = np.array([[1.0, 0, w / 2], [0, 1.0, 0], [0, 0, 1]])
     assert photometric_agreement(base, base, np.eye(3), tolerance=0.01) == 1.0
@@ -353,8 +341,8 @@ def test_start_tolerance_lets_the_images_decide_what_the_readings_cannot(toleran
     support the first candidate (no motion) wins the tie, by photometric agreement the start
     under which the frames match (the previous motion, here the true one)."""
     h, w = 128, 160
-    base = _texture(h, w, seed=8)[:h, :w]
-    moved = _shift(base, 6, 0, h, w)
+    base = random_texture(h, w, seed=8)[:h, :w]
+    moved = shifted(base, 6, 0, h, w)
     prior = np.array([[1.0, 0, 6], [0, 1.0, 0], [0, 0, 1]])
     flow = _flow(base, moved, model=NoMotionMatcher(), levels=2, stride=8,
                          min_texture=0.0, prior=prior, start_tolerance=tolerance)
@@ -370,8 +358,8 @@ def test_a_converged_coarsest_level_skips_its_re_reads(prior_x, skipped):
     from bgsub.model.tiling import patch_grid
 
     h, w = 192, 256
-    base = _texture(h, w, seed=6)[:h, :w]
-    moved = _shift(base, 6, 0, h, w)
+    base = random_texture(h, w, seed=6)[:h, :w]
+    moved = shifted(base, 6, 0, h, w)
     prior = None if prior_x is None else np.array([[1.0, 0, prior_x], [0, 1, 0], [0, 0, 1]])
     kw = dict(levels=2, stride=8, iterations=1, coarse_iterations=3, prior=prior,
               min_texture=0.0)
@@ -399,8 +387,8 @@ def test_a_prepared_first_frame_gives_the_same_flow_without_recutting_it(monkeyp
     from bgsub.motion.flowfield import FramePyramid, prepare_first_frame
 
     h, w = 96, 128
-    base = _texture(h, w, seed=5)[:h, :w]
-    moved = _shift(base, 3, -2, h, w)
+    base = random_texture(h, w, seed=5)[:h, :w]
+    moved = shifted(base, 3, -2, h, w)
     model = _random_contrast_model()
     kwargs = _pyramid_kwargs(model)
     expected = _flow(base, moved, prior=np.eye(3), search=1, **kwargs)
@@ -425,8 +413,8 @@ def test_a_frame_pyramid_serves_as_second_frame_then_first():
     from bgsub.motion.flowfield import FramePyramid
 
     h, w = 96, 128
-    a = _texture(h, w, seed=6)[:h, :w]
-    b, c = _shift(a, 2, 1, h, w), _shift(a, 4, 2, h, w)
+    a = random_texture(h, w, seed=6)[:h, :w]
+    b, c = shifted(a, 2, 1, h, w), shifted(a, 4, 2, h, w)
     kwargs = _pyramid_kwargs(_random_contrast_model())
     pa, pb, pc = FramePyramid(a), FramePyramid(b), FramePyramid(c)
     for (x, y), (px, py) in (((a, b), (pa, pb)), ((b, c), (pb, pc))):
@@ -443,7 +431,7 @@ def test_a_frame_pyramid_serves_as_second_frame_then_first():
     (dict(prior=np.eye(2)), "prior must be a finite (3, 3) homography"),
 ])
 def test_bad_estimate_flow_options_are_input_errors(change, words):
-    base = _texture(60, 80, seed=3)[:60, :80]
+    base = random_texture(60, 80, seed=3)[:60, :80]
     with pytest.raises(InputError, match=re.escape(words)):
         _flow(change.get("first", base), base, model=OracleMatcher(), levels=1,
               prior=change.get("prior"))
@@ -452,7 +440,7 @@ def test_bad_estimate_flow_options_are_input_errors(change, words):
 @pytest.mark.parametrize("fill, where", [(np.nan, np.s_[10:20, 10:20]), (np.nan, np.s_[:, :]),
                                          (np.inf, np.s_[5, 7])])
 def test_a_float_frame_with_nan_or_inf_is_refused_before_any_warning(fill, where):
-    base = _texture(60, 80, seed=3)[:60, :80].astype(np.float32) / 255
+    base = random_texture(60, 80, seed=3)[:60, :80].astype(np.float32) / 255
     bad = base.copy()
     bad[where] = fill
     with warnings.catch_warnings():
@@ -467,7 +455,7 @@ def test_a_max_motion_beyond_the_pyramid_the_frame_allows_warns_with_its_reach()
     # with the oracle's range of 3; 20 px would need 4 levels.
     from bgsub.motion.flowfield import MotionRangeWarning
 
-    base = _texture(120, 160, seed=3)[:120, :160]
+    base = random_texture(120, 160, seed=3)[:120, :160]
     with pytest.warns(MotionRangeWarning, match=r"max_motion=20 px .* 160x120 frames: the 2 "
                                                 r"pyramid levels .* up to about 4 px"):
         flow = _flow(base, base, model=OracleMatcher(), max_motion=20, search=0)
@@ -477,13 +465,13 @@ def test_a_max_motion_beyond_the_pyramid_the_frame_allows_warns_with_its_reach()
 @pytest.mark.parametrize("options", [dict(max_motion=4), dict(max_motion=20, search=4),
                                      dict(max_motion=20, levels=2)])
 def test_a_max_motion_within_reach_or_fixed_levels_do_not_warn(options):
-    base = _texture(120, 160, seed=3)[:120, :160]
+    base = random_texture(120, 160, seed=3)[:120, :160]
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         _flow(base, base, model=OracleMatcher(), **options)
 
 
 def test_a_model_name_is_loaded():
-    base = _texture(60, 80, seed=3)[:60, :80]
+    base = random_texture(60, 80, seed=3)[:60, :80]
     flow = _flow(base, base, model="dots-translation", levels=1)
     assert flow.disp.shape[1] == 2

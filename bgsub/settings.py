@@ -18,6 +18,7 @@ text the engines' ``Param`` tables (``bgsub methods``, ``--param``) are generate
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import Any, Dict, Iterable, Optional
 
 from bgsub.engines.base import Param
@@ -38,7 +39,9 @@ def setting(default: Any, help: str, *, low: Optional[float] = None,
     return dataclasses.field(default=default, metadata={_KEY: param})
 
 
+@functools.lru_cache(maxsize=None)
 def _params(config_type: type) -> Dict[str, Param]:
+    # Cached: engines build configs every frame. (The dict is never handed out to be changed.)
     return {f.name: f.metadata[_KEY] for f in dataclasses.fields(config_type) if _KEY in f.metadata}
 
 
@@ -49,7 +52,7 @@ def config_params(config_type: type, names: Optional[Iterable[str]] = None,
     some defaults (same help text and bounds). :class:`KeyError` for a name that is not a
     setting."""
     params = _params(config_type)
-    chosen = {name: params[name] for name in (params if names is None else names)}
+    chosen = {name: params[name] for name in (params if names is None else names)}  # a copy
     for name, value in defaults.items():
         chosen[name] = dataclasses.replace(chosen[name], default=value)
     return chosen
@@ -60,7 +63,10 @@ def check_settings(config: Any) -> None:
     :func:`setting` field of the dataclass instance ``config`` is of another type than its
     default's or outside its bounds or choices."""
     for name, param in _params(type(config)).items():
+        value = getattr(config, name)
+        if type(value) is type(param.default) and value == param.default:
+            continue  # a default is valid (and checking every field costs ~10 us each)
         try:
-            param.check(name, getattr(config, name))
+            param.check(name, value)
         except InputError as err:
             raise InputError(f"{type(config).__name__}: {err}") from None

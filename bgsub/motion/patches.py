@@ -21,7 +21,8 @@ from bgsub.motion.global_motion import GlobalMotion, apply_homography, fit_globa
 from bgsub.motion.pyramid import warp_back
 
 __all__ = ["WEAK_TEXTURE", "LevelGrid", "LevelReading", "PatchGrids", "level_texture_map",
-           "patch_motion", "patches_at", "read_level", "reading_from", "texture_weights"]
+           "patch_motion", "patches_at", "read_level", "reading_from", "texture_weights",
+           "textured_pixels"]
 
 #: Patches with less than this fraction of the level's largest structure-tensor eigenvalue are
 #: at the noise level when the stronger ones lie in one compact region (``_COMPACT``): see
@@ -96,6 +97,15 @@ def level_texture_map(gray: np.ndarray, p: int) -> np.ndarray:
     tmap = cv2.cornerMinEigenVal(gray, p, ksize=3)
     tmap *= np.float32(0.25)
     return np.maximum(tmap, 0.0, out=tmap)
+
+
+def textured_pixels(gray: np.ndarray) -> np.ndarray:
+    """``(H, W) bool``: pixels of ``gray`` ``(H, W) float32`` with any gradient (|dx| + |dy|
+    above about 0.0025 per pixel on gray values in [0, 1]); flat pixels agree under every
+    motion and would only dilute the photometric check."""
+    gx = cv2.Sobel(gray, cv2.CV_32F, 1, 0)
+    gy = cv2.Sobel(gray, cv2.CV_32F, 0, 1)
+    return (np.abs(gx) + np.abs(gy)) > np.float32(0.02)  # Sobel is 8x the per-pixel slope
 
 
 _GRIDS: dict = {}
@@ -206,9 +216,7 @@ class PatchGrids:
         return self._grids[key]
 
     def textured(self, image: np.ndarray) -> np.ndarray:
-        """:func:`~bgsub.motion.starts.textured_pixels` of the level ``image``, kept."""
-        from bgsub.motion.starts import textured_pixels
-
+        """:func:`textured_pixels` of the level ``image``, kept."""
         if image.shape not in self._textured:
             self._textured[image.shape] = textured_pixels(image)
         return self._textured[image.shape]

@@ -17,11 +17,11 @@ import cv2
 import numpy as np
 
 from bgsub.motion.global_motion import corner_distances, is_identity
-from bgsub.motion.patches import PatchGrids, patch_motion, patches_at, reading_from
+from bgsub.motion.patches import (PatchGrids, patch_motion, patches_at, reading_from,
+                                  textured_pixels)
 from bgsub.motion.pyramid import scale_homography, warp_back
 
-__all__ = ["Start", "StartSearch", "choose_start", "corner_shift", "photometric_agreement",
-           "textured_pixels"]
+__all__ = ["Start", "StartSearch", "choose_start", "corner_shift", "photometric_agreement"]
 
 
 def corner_shift(h_a: np.ndarray, h_b: np.ndarray, shape: tuple) -> float:
@@ -30,15 +30,6 @@ def corner_shift(h_a: np.ndarray, h_b: np.ndarray, shape: tuple) -> float:
     its pixels. The corners bound the difference anywhere inside for affine motions (and
     nearly so for the mild homographies between frames)."""
     return float(np.max(corner_distances(h_a, h_b, width=shape[1], height=shape[0])))
-
-
-def textured_pixels(gray: np.ndarray) -> np.ndarray:
-    """``(H, W) bool``: pixels of ``gray`` ``(H, W) float32`` with any gradient (|dx| + |dy|
-    above about 0.0025 per pixel on gray values in [0, 1]); flat pixels agree under every
-    motion and would only dilute the photometric check."""
-    gx = cv2.Sobel(gray, cv2.CV_32F, 1, 0)
-    gy = cv2.Sobel(gray, cv2.CV_32F, 0, 1)
-    return (np.abs(gx) + np.abs(gy)) > np.float32(0.02)  # Sobel is 8x the per-pixel slope
 
 
 def photometric_agreement(g1: np.ndarray, g2: np.ndarray, matrix: np.ndarray, *,
@@ -54,7 +45,7 @@ def photometric_agreement(g1: np.ndarray, g2: np.ndarray, matrix: np.ndarray, *,
     tolerance : float
         Largest gray-value difference that agrees.
     textured : (H, W) bool, optional
-        :func:`textured_pixels` of ``g1``, when already computed.
+        :func:`~bgsub.motion.patches.textured_pixels` of ``g1``, when already computed.
 
     Returns
     -------
@@ -114,8 +105,14 @@ class StartSearch:
         The first frame's cut patches.
     stride : int
         Patch grid step at that level.
-    model : the patch-motion model; ``max_disp`` its range.
-    fit_model, threshold : the motion model and RANSAC threshold each candidate is refined with.
+    model
+        The patch-motion model.
+    max_disp : int
+        Its displacement range.
+    fit_model : str
+        The motion model each candidate's readout is fitted with (``start_model``).
+    threshold : float
+        The RANSAC threshold of that fit (the level's pixels).
     tolerance : float
         ``start_tolerance``: above 0, candidates are scored photometrically.
     """

@@ -180,6 +180,11 @@ class _Reader:
             else:
                 grids.grid(pyr1[plan.fine], plan.pre_stride)
 
+    def pair_with(self, second: FramePyramid) -> None:
+        """Read against ``second`` (a pyramid of the first frame's size): build the levels the
+        plan reads."""
+        self.pyr2 = second.levels(self.plan.levels, self.patch_size)
+
     def read(self, lvl: int, stride: int, h_est: np.ndarray) -> LevelReading:
         """Level ``lvl``'s readout on the grid of ``stride``, the second frame pre-warped by
         the full-resolution motion ``h_est``; a coarser level than the final one keeps
@@ -196,9 +201,11 @@ class _Reader:
         config, top = self.config, self.plan.levels - 1
         if (prior is None and config.search == 0) or top == 0:
             return (np.eye(3) if prior is None else prior), False, np.inf
-        search = StartSearch(self.pyr1[top], self.pyr2[top], top, self.grids,
-                             self.plan.coarse_stride, self.model, self.max_disp,
-                             config.start_model, config.ransac_threshold, config.start_tolerance)
+        search = StartSearch(g1=self.pyr1[top], g2=self.pyr2[top], level=top, grids=self.grids,
+                             stride=self.plan.coarse_stride, model=self.model,
+                             max_disp=self.max_disp, fit_model=config.start_model,
+                             threshold=config.ransac_threshold,
+                             tolerance=config.start_tolerance)
         start = choose_start(search, prior, steps=config.search,
                              search_below=config.search_below)
         return start.motion, True, start.shift
@@ -315,7 +322,7 @@ def estimate_flow(frame1: Any, frame2: Any, config: FlowConfig = FlowConfig(), *
     if first.shape != second.shape:
         raise InputError(f"frames differ in size: {first.shape} and {second.shape}")
     reader = _Reader(first, config, model)
-    reader.pyr2 = second.levels(reader.plan.levels, reader.patch_size)
+    reader.pair_with(second)
     _warn_if_out_of_reach(config, reader.plan, first.shape)
     h_est, started, shift = reader.start(prior)
     h_est, status = reader.refine(h_est, started=started, shift=shift)

@@ -17,7 +17,8 @@ import numpy as np
 from numpy.lib.stride_tricks import as_strided
 
 from bgsub.model.tiling import patch_grid
-from bgsub.motion.global_motion import GlobalMotion, apply_homography, fit_global_motion, is_identity
+from bgsub.motion.global_motion import (GlobalMotion, apply_homography, fit_global_motion,
+                                        is_identity)
 from bgsub.motion.pyramid import warp_back
 
 __all__ = ["WEAK_TEXTURE", "LevelGrid", "LevelReading", "PatchGrids", "level_texture_map",

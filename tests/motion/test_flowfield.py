@@ -9,7 +9,6 @@ import dataclasses
 import re
 import warnings
 
-import cv2
 import numpy as np
 import pytest
 

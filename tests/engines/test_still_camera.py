@@ -1,5 +1,5 @@
-"""The still-camera switch: bgsub.background.foreground.SampleBackground, bgsub.engines.moving.motion_snr, and
-the engines' choice between the compensated and the sample background model."""
+"""The still-camera switch: bgsub.background.sample.SampleBackground, bgsub.engines.parts.motion_snr,
+and the engines' choice between the compensated and the sample background model."""
 
 import cv2
 import numpy as np
@@ -7,9 +7,10 @@ import pytest
 
 from bgsub.engines import create_engine
 from bgsub.errors import InputError
-from bgsub.background.foreground import SampleBackground
+from bgsub.background.sample import SampleBackground
 from bgsub.motion.global_motion import GlobalMotion
-from bgsub.engines.moving import MotionResult, motion_snr
+from bgsub.engines.frontend import MotionResult
+from bgsub.engines.parts import motion_snr
 from bgsub.samples import SceneSpec, render_frames
 from conftest import model_path as _model_path
 
@@ -185,10 +186,10 @@ def _f_on_flicker(method, still_model):
 @pytest.mark.parametrize("method", ["grbm", "compensated"])
 def test_a_multimodal_background_needs_the_sample_model(method):
     # A mean and a variance put the object's gray inside the flicker's spread; two samples
-    # of 60 and 180 do not (measured F: grbm 0.36, compensated 0.65; without: 0.00 both).
+    # of 60 and 180 do not (F: grbm 0.36, compensated 0.65; without: 0.00 both).
     with_samples, eng = _f_on_flicker(method, 0.15)
     without, plain = _f_on_flicker(method, 0.0)
-    assert eng.camera_still and not plain.camera_still and plain.still_bg is None
+    assert eng.camera_still and not plain.camera_still and plain.still_switch is None
     assert with_samples > 0.25 and without < 0.05
 
 
@@ -198,4 +199,4 @@ def test_the_background_image_is_the_still_models_while_the_camera_is_still():
         eng.apply(img)
     assert eng.camera_still
     assert np.array_equal(eng.get_background_image(),
-                          eng.still_bg.background_image())
+                          eng.still_switch.model.background_image())

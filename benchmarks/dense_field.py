@@ -15,7 +15,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from bgsub.motion.flowfield import estimate_flow
+from bgsub.motion import FlowConfig, estimate_flow
 from bgsub.io.flowio import read_flo
 from bgsub.model.rbm import load_model
 
@@ -35,8 +35,8 @@ def main(argv: list) -> int:
     print("| levels | stride | pixels with a value | EPE (px) | within 1 px |")
     print("|---|---|---|---|---|")
     for levels, stride in ((1, 6), (1, 3), (None, 6), (None, 3)):
-        dense = estimate_flow(first, second, model=model, dense=True, min_texture=0.0,
-                              levels=levels, stride=stride).dense
+        config = FlowConfig(dense=True, min_texture=0.0, levels=levels or 0, stride=stride)
+        dense = estimate_flow(first, second, config, model=model).dense
         known = np.isfinite(dense).all(axis=2)
         both = known & has_truth
         error = np.hypot(*(dense[both] - truth[both]).T)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 from pathlib import Path
 from typing import Any, List, Optional, Tuple
@@ -13,6 +14,7 @@ from bgsub.cli.common import (add_output_options, add_source_options, check_dist
                               model_files, note, progress, source_kwargs, warn,
                               warn_if_binary_model, warn_if_binary_model_on_source)
 from bgsub.errors import InputError, OutputError
+from bgsub.motion.config import FlowConfig
 
 _DESCRIPTION = """\
 Estimate the motion between two images with a gated RBM (default: the shipped `natural` model,
@@ -39,6 +41,8 @@ examples:
 
 _PICTURE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp"}
 _ARROW_STEP = 16  # default of --arrow-step
+# The reader's settings are the grbm engine's (FlowConfig's defaults); the options replace some.
+_FLOW = FlowConfig()
 
 
 def register(subparsers: Any) -> None:
@@ -68,15 +72,16 @@ def register(subparsers: Any) -> None:
                         help="shipped model name (natural, dots-translation, ...) or a .npz path "
                              "(default: natural)")
     est = parser.add_argument_group("estimation")
-    est.add_argument("--max-motion", type=float, default=20.0, metavar="PX",
+    est.add_argument("--max-motion", type=float, default=_FLOW.max_motion, metavar="PX",
                      help="largest motion to expect, above 0; plans the pyramid and, on frames "
                           "too small for the levels it needs, widens the coarsest search "
-                          "(slower) (default 20)")
+                          f"(slower) (default {_FLOW.max_motion:g})")
     est.add_argument("--levels", type=int, default=None, metavar="N",
                      help="pyramid levels, at least 1 (default: enough for --max-motion; "
                           "1 = no pyramid)")
-    est.add_argument("--stride", type=int, default=6, metavar="PX",
-                     help="patch grid step, at least 1 (default 6; smaller = finer field, slower)")
+    est.add_argument("--stride", type=int, default=_FLOW.stride, metavar="PX",
+                     help=f"patch grid step, at least 1 (default {_FLOW.stride}; smaller = finer "
+                          "field, slower)")
     add_source_options(parser)
     add_output_options(parser, quiet_help="no progress bar and no notes on stderr (warnings "
                                           "and errors are still printed)")
@@ -164,16 +169,18 @@ _MAX_SEARCH = 8
 
 def _search_for(shape: Tuple[int, int], model: Any, args: argparse.Namespace) -> int:
     """The grid of coarsest-level starts that lets the pyramid a frame of ``shape`` (H, W)
-    allows read --max-motion: small frames allow fewer levels than it needs (0 when the levels
-    reach it alone, or with --levels)."""
+    allows read --max-motion: small frames allow fewer levels than it needs (FlowConfig's
+    default when the levels reach it alone, or with --levels; 0 with one level)."""
     from bgsub.motion.flowfield import model_range, pyramid_reach
 
     if args.levels is not None:
-        return 0
+        return _FLOW.search
     # The pyramid estimate_flow plans for the same frame, model and --max-motion.
     pyramid = pyramid_reach(shape, max_motion=args.max_motion, model_disp=model_range(model),
                             patch_size=int(model.patch_size))
     search = pyramid.search_for(args.max_motion, limit=_MAX_SEARCH)
+    if pyramid.levels > 1:  # (one level reads no grid of starts)
+        search = max(_FLOW.search, search)
     reach = pyramid.reach(search)
     if reach < args.max_motion and not getattr(args, "reach_warned", False):
         warn(f"--max-motion {args.max_motion:g} is beyond what {shape[1]}x{shape[0]} frames "
@@ -187,9 +194,10 @@ def _estimate(frame1: np.ndarray, frame2: np.ndarray, model: Any, args: argparse
     from bgsub.motion.flowfield import estimate_flow
 
     search = _search_for(frame1.shape[:2], model, args)  # (says it in CLI words: warn_range off)
-    return estimate_flow(frame1, frame2, model=model, stride=args.stride, levels=args.levels,
-                         max_motion=args.max_motion, prior=prior, search=search, dense=True,
-                         warn_range=False)
+    config = dataclasses.replace(_FLOW, stride=args.stride, levels=args.levels or 0,
+                                 max_motion=args.max_motion, search=search, dense=True,
+                                 warn_range=False)
+    return estimate_flow(frame1, frame2, config, model=model, prior=prior)
 
 
 def _check_pair_outputs(args: argparse.Namespace) -> None:

@@ -1,5 +1,5 @@
 """Settings of the moving-camera engine's own stages: the camera motion
-(:class:`CameraMotionConfig`) and the engine around the stages (:class:`EngineConfig`).
+(:class:`CameraConfig`) and the engine around the stages (:class:`EngineConfig`).
 
 With the background model's (:class:`~bgsub.background.compensated.BackgroundConfig`), the
 fusion's (:class:`~bgsub.background.fusion.FusionConfig`) and the front end's settings they make
@@ -20,7 +20,7 @@ from bgsub.errors import InputError
 from bgsub.motion.global_motion import MODELS
 from bgsub.settings import check_settings, config_params, setting
 
-__all__ = ["MIN_WORK_WIDTH", "CameraMotionConfig", "EngineConfig", "STAGES", "engine_params",
+__all__ = ["MIN_WORK_WIDTH", "CameraConfig", "EngineConfig", "STAGES", "engine_params",
            "stage_configs"]
 
 # The narrowest working frame: a few 13x13 patches across, so a motion can be read at all.
@@ -29,8 +29,10 @@ MIN_WORK_WIDTH = 32
 
 
 @dataclass(frozen=True)
-class CameraMotionConfig:
-    """How the camera motion is fitted to the front end's vectors and applied to the model."""
+class CameraConfig:
+    """The engine's camera-motion stage: the RANSAC fit to the front end's vectors (as
+    :class:`bgsub.motion.global_motion.CameraMotionConfig`), which fits it refuses and which
+    motion it holds back."""
 
     motion_model: str = setting("homography", "camera motion model fitted by RANSAC",
                                 choices=MODELS)
@@ -92,7 +94,7 @@ class EngineConfig:
 
 
 #: The engine's stage settings, in the order of its parameter table.
-STAGES = (EngineConfig, CameraMotionConfig, BackgroundConfig, FusionConfig)
+STAGES = (EngineConfig, CameraConfig, BackgroundConfig, FusionConfig)
 
 
 def engine_params(front_params: Mapping[str, Param],

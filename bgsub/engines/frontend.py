@@ -45,7 +45,7 @@ from typing import Any, ClassVar, Dict, Mapping, Optional
 import numpy as np
 
 from bgsub.engines.base import Param
-from bgsub.motion.global_motion import GlobalMotion, fit_global_motion
+from bgsub.motion.global_motion import CameraMotionConfig, GlobalMotion
 from bgsub.settings import config_params
 
 __all__ = ["MotionResult", "MotionFrontEnd", "CameraFit", "NO_MOTION"]
@@ -90,18 +90,17 @@ NO_MOTION = MotionResult(_NONE, _NONE, np.zeros(0, np.float32), GlobalMotion.ide
 
 class CameraFit:
     """The camera-motion fit a front end applies to its vectors: RANSAC of ``motion_model``
-    with inlier distance ``threshold`` (working-size px), :func:`fit_global_motion`."""
+    with inlier distance ``threshold`` (working-size px), :class:`CameraMotionConfig`."""
 
     def __init__(self, *, motion_model: str, threshold: float) -> None:
-        self.motion_model = motion_model
-        self.threshold = float(threshold)
+        self.config = CameraMotionConfig(motion_model=motion_model, threshold=threshold)
 
     def __call__(self, points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
                  shape: tuple) -> GlobalMotion:
         """The motion of ``(N, 2)`` ``points`` moved by ``disp``, with ``(N,)`` ``weights``,
         in an ``(h, w)`` frame."""
-        return fit_global_motion(points, points + disp, weights=weights, model=self.motion_model,
-                                 threshold=self.threshold, frame_size=(shape[1], shape[0]))
+        return self.config.fit(points, points + disp, weights=weights,
+                               frame_size=(shape[1], shape[0]))
 
 
 class MotionFrontEnd(ABC):

@@ -34,7 +34,7 @@ from bgsub.background.compensated import BackgroundConfig, CompensatedBackground
 from bgsub.background.fusion import Fusion, FusionConfig
 from bgsub.engines.base import (Engine, check_fgmask, check_frame, check_learning_rate,
                                 opencv_keywords, register_engine)
-from bgsub.engines.config import (MIN_WORK_WIDTH, CameraMotionConfig, EngineConfig,
+from bgsub.engines.config import (MIN_WORK_WIDTH, CameraConfig, EngineConfig,
                                   engine_params, stage_configs)
 from bgsub.engines.frontend import NO_MOTION, CameraFit, MotionFrontEnd, MotionResult
 from bgsub.engines.parts import (FrozenModelRegistration, MotionHoldBack, SceneCut,
@@ -71,14 +71,14 @@ class MovingCameraEngine(Engine):
     """
 
     def __init__(self, frontend: MotionFrontEnd, *, engine: Optional[EngineConfig] = None,
-                 camera: Optional[CameraMotionConfig] = None,
+                 camera: Optional[CameraConfig] = None,
                  background: Optional[BackgroundConfig] = None,
                  fusion: Optional[FusionConfig] = None) -> None:
         defaults = stage_configs({}, frontend.stage_defaults)
         self.frontend = frontend
         self.name = frontend.name or "moving-camera"
         self.config = engine or defaults[EngineConfig]
-        self.camera = camera or defaults[CameraMotionConfig]
+        self.camera = camera or defaults[CameraConfig]
         self.bg = CompensatedBackground(background or defaults[BackgroundConfig])
         self.fusion = Fusion(fusion or defaults[FusionConfig])
         c, cam = self.config, self.camera
@@ -368,7 +368,7 @@ def register_frontend(frontend_type: Type[MotionFrontEnd]) -> None:
             raise InputError(f"{name}: {err}") from None
         frontend = frontend_type.from_params(**{k: v for k, v in values.items() if k in front})
         return MovingCameraEngine(frontend, engine=stages[EngineConfig],
-                                  camera=stages[CameraMotionConfig],
+                                  camera=stages[CameraConfig],
                                   background=stages[BackgroundConfig],
                                   fusion=stages[FusionConfig])
 
@@ -376,12 +376,10 @@ def register_frontend(frontend_type: Type[MotionFrontEnd]) -> None:
 
 
 def _register_builtins() -> None:
+    from bgsub.engines.frontends.grbm import GrbmFrontEnd
     from bgsub.engines.frontends.lucas_kanade import LucasKanadeFrontEnd
-    try:  # TEMP
-        from bgsub.engines.frontends.grbm import GrbmFrontEnd
-        register_frontend(GrbmFrontEnd)
-    except ImportError:
-        pass
+
+    register_frontend(GrbmFrontEnd)
     register_frontend(LucasKanadeFrontEnd)
 
 

@@ -20,8 +20,10 @@ import cv2
 import numpy as np
 
 from bgsub.errors import InputError
+from bgsub.settings import check_settings, setting
 
 __all__ = [
+    "CameraMotionConfig",
     "GlobalMotion",
     "MODELS",
     "fit_global_motion",
@@ -303,3 +305,22 @@ def _fit_translation(s: np.ndarray, d: np.ndarray, threshold: float) -> tuple:
     mask = np.hypot(*(shifts - t).T) < threshold
     matrix = np.array([[1.0, 0.0, t[0]], [0.0, 1.0, t[1]], [0.0, 0.0, 1.0]])
     return matrix, mask.astype(np.uint8)
+
+
+@dataclass(frozen=True)
+class CameraMotionConfig:
+    """How the camera motion is fitted to a frame's correspondences (its RANSAC settings)."""
+
+    motion_model: str = setting("homography", "camera motion model fitted by RANSAC",
+                                choices=MODELS)
+    threshold: float = setting(1.5, "RANSAC inlier distance in working-size pixels", above=0)
+
+    def __post_init__(self) -> None:
+        check_settings(self)
+
+    def fit(self, src: np.ndarray, dst: np.ndarray, *, weights: Optional[np.ndarray] = None,
+            frame_size: Optional[tuple] = None) -> GlobalMotion:
+        """:func:`fit_global_motion` of ``(N, 2)`` correspondences ``src -> dst`` with this
+        model and threshold (``weights`` ``(N,)``; ``frame_size`` ``(W, H)``)."""
+        return fit_global_motion(src, dst, weights=weights, model=self.motion_model,
+                                 threshold=self.threshold, frame_size=frame_size)

@@ -70,7 +70,7 @@ def test_uncovered_border_has_no_history_and_is_not_foreground():
     assert np.all(bg.age[:, -9:] == 0) and np.all(bg.age[:, :40] >= 1)
     new = first.copy()
     new[:, -10:] = 250  # new content scrolling in: different, but no history there
-    young = bg.params.young_score
+    young = bg.config.young_score
     assert 0 < young < 1  # below the decision: only motion evidence can make it foreground
     assert np.all(bg.score(new)[:, -9:] == np.float32(young))
     assert not fuse_masks(bg.score(new)).any()

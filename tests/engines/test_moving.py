@@ -39,6 +39,19 @@ def _frames(n=14, pan=4.0, h=180, w=240, square=True):
         yield frame, gt
 
 
+def _texture(h, w, seed=0):
+    """A gray (h + 8, w + 8) uint8 texture with detail at the patches' scale."""
+    rng = np.random.default_rng(seed)
+    img = rng.random((h // 4 + 1, w // 4 + 1)).astype(np.float32)
+    img = cv2.resize(img, (w + 8, h + 8), interpolation=cv2.INTER_CUBIC)
+    return (np.clip(img, 0, 1) * 255).astype(np.uint8)
+
+
+def _shift(img, dx, dy, h, w):
+    m = np.float32([[1, 0, dx], [0, 1, dy]])
+    return cv2.warpAffine(img, m, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+
+
 def _engine(name):
     if name == "grbm":
         eng = create_engine("grbm", model=_model_path())
@@ -492,17 +505,15 @@ def test_grbm_contrast_floor_applies_to_its_own_copy_of_the_model():
     model = load_model("natural")
     own = model.contrast_floor
     eng = create_engine("grbm", model=model, contrast_floor=0.005)
-    assert eng.model.contrast_floor == 0.005
+    assert eng.frontend.model.contrast_floor == 0.005
     assert model.contrast_floor == own
-    assert create_engine("grbm", model=model, contrast_floor=0).model is model
+    assert create_engine("grbm", model=model, contrast_floor=0).frontend.model is model
 
 
 def test_grbm_reads_a_low_contrast_pan_with_the_default_contrast_floor():
     """A pan filmed at low contrast (RMS ~3 gray levels per patch, below the shipped models'
     0.02 floor of 5.1; a gentle ramp keeps the frame itself above the blank-frame test) is read
     by the default engine and missed with the model's own floor."""
-    from test_flowfield import _shift, _texture
-
     h, w = 120, 160
     base = _texture(h, w, seed=11)[:h, :w].astype(np.float32)
     ramp = np.linspace(-15, 15, w, dtype=np.float32)[None, :]
@@ -526,8 +537,6 @@ def test_grbm_finds_a_zoom_and_rotation_from_a_translation_start(zoom, angle, sh
     the full model, so a first frame pair (no previous motion) that zooms by 5 % and rotates
     by 3 degrees is still recovered to a fraction of a pixel at the corners."""
     from bgsub.motion.global_motion import corner_distances
-    from test_flowfield import _texture
-
     h, w = 240, 320
     first = _texture(h, w, seed=5)[:h, :w].astype(np.uint8)
     m = cv2.getRotationMatrix2D((w / 2, h / 2), angle, zoom)

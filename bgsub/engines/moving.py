@@ -372,6 +372,7 @@ def register_frontend(frontend_type: Type[MotionFrontEnd]) -> None:
                                   background=stages[BackgroundConfig],
                                   fusion=stages[FusionConfig])
 
+    factory.__module__ = frontend_type.__module__  # the engine is the front end's
     register_engine(name, frontend_type.description, params)(factory)
 
 

@@ -44,7 +44,7 @@ from bgsub.errors import InputError
 from bgsub.io.flowio import draw_flow_arrows
 from bgsub.motion.global_motion import apply_homography
 
-__all__ = ["MovingCameraEngine", "register_frontend", "work_size"]
+__all__ = ["MovingCameraEngine", "register_frontend", "work_size", "draw_debug"]
 
 
 def work_size(width: int, height: int, work_width: int) -> tuple:
@@ -323,31 +323,41 @@ class MovingCameraEngine(Engine):
         foreground mask tints the frame magenta. ``(H, W, 3) uint8``, None before two frames."""
         if self._last_frame is None or self._last is None:
             return None
-        frame, res = self._last_frame, self._last
-        canvas = cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR) if frame.ndim == 2 else frame.copy()
-        canvas = (canvas * 0.6).astype(np.uint8)
-        colour = None if res is NO_MOTION else self.frontend.flow_colour(canvas.shape[:2])
-        if colour is not None:
-            canvas = cv2.addWeighted(canvas, 0.5, colour, 0.5, 0.0)
-        if self._last_mask is not None:
-            canvas[self._last_mask > 0] = (0.5 * canvas[self._last_mask > 0]
-                                           + np.array([127, 0, 127])).astype(np.uint8)
-        h, w = canvas.shape[:2]
-        use = res.weights > 0
-        inl = res.motion.inliers  # over all of res.points (GlobalMotion's contract)
-        # Arrows end where the point went (drawn from the previous position).
-        for chosen, colour_bgr in ((use & ~inl, (0, 0, 255)), (use & inl, (0, 255, 0))):
-            canvas = draw_flow_arrows(canvas, res.points[chosen], res.disp[chosen], scale=3.0,
-                                      color=colour_bgr, dot_color=None)
-        step = max(16, w // 10)
-        ys, xs = np.mgrid[step // 2:h:step, step // 2:w:step]
-        grid = np.stack([xs.ravel(), ys.ravel()], 1).astype(np.float64)
-        cam = apply_homography(res.motion.matrix if res.motion.ok else np.eye(3), grid) - grid
-        canvas = draw_flow_arrows(canvas, grid, cam, scale=3.0, color=(255, 128, 0), thickness=2,
-                                  dot_color=(255, 128, 0))
-        cv2.putText(canvas, self.last_status[:40], (4, 14), cv2.FONT_HERSHEY_SIMPLEX, 0.4,
-                    (255, 255, 255), 1, cv2.LINE_AA)
+        res = self._last
+        colour = None if res is NO_MOTION else self.frontend.flow_colour(
+            self._last_frame.shape[:2])
+        canvas = draw_debug(self._last_frame, self._last_mask, res, colour, self.last_status)
         return self._to_input_image(canvas)
+
+
+def draw_debug(frame: np.ndarray, mask: Optional[np.ndarray], res: MotionResult,
+               colour: Optional[np.ndarray], status: str) -> np.ndarray:
+    """``frame`` ((h, w) or (h, w, 3) uint8) darkened, with the front end's motion picture
+    ``colour`` blended in, ``mask`` tinting it magenta, the vectors of ``res`` drawn (green =
+    RANSAC inliers, red = outliers), the camera motion on a coarse grid (blue) and ``status``
+    written: ``(h, w, 3) uint8``."""
+    canvas = cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR) if frame.ndim == 2 else frame.copy()
+    canvas = (canvas * 0.6).astype(np.uint8)
+    if colour is not None:
+        canvas = cv2.addWeighted(canvas, 0.5, colour, 0.5, 0.0)
+    if mask is not None:
+        canvas[mask > 0] = (0.5 * canvas[mask > 0] + np.array([127, 0, 127])).astype(np.uint8)
+    h, w = canvas.shape[:2]
+    use = res.weights > 0
+    inl = res.motion.inliers  # over all of res.points (GlobalMotion's contract)
+    # Arrows end where the point went (drawn from the previous position).
+    for chosen, colour_bgr in ((use & ~inl, (0, 0, 255)), (use & inl, (0, 255, 0))):
+        canvas = draw_flow_arrows(canvas, res.points[chosen], res.disp[chosen], scale=3.0,
+                                  color=colour_bgr, dot_color=None)
+    step = max(16, w // 10)
+    ys, xs = np.mgrid[step // 2:h:step, step // 2:w:step]
+    grid = np.stack([xs.ravel(), ys.ravel()], 1).astype(np.float64)
+    cam = apply_homography(res.motion.matrix if res.motion.ok else np.eye(3), grid) - grid
+    canvas = draw_flow_arrows(canvas, grid, cam, scale=3.0, color=(255, 128, 0), thickness=2,
+                              dot_color=(255, 128, 0))
+    cv2.putText(canvas, status[:40], (4, 14), cv2.FONT_HERSHEY_SIMPLEX, 0.4,
+                (255, 255, 255), 1, cv2.LINE_AA)
+    return canvas
 
 
 # ---------------------------------------------------------------------- registration

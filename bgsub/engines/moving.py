@@ -62,12 +62,23 @@ class MovingCameraEngine(Engine):
     """A background subtractor for a moving camera, built on the motion front end ``frontend``.
 
     The stage settings are keyword-only frozen dataclasses; each left out takes its defaults,
-    with those the front end replaces (``frontend.stage_defaults``), as ``create_engine`` does.
+    with those the front end replaces (``frontend.stage_defaults``), as ``create_engine`` does
+    (a stage given is used as it is: ``create_engine(name, **params)`` keeps the front end's
+    defaults of the settings not named)::
+
+        engine = MovingCameraEngine(LucasKanadeFrontEnd(LucasKanadeConfig(max_corners=800)),
+                                    fusion=FusionConfig(min_area=50))
 
     Attributes
     ----------
     last_status : str
         ``"ok"`` or ``"fallback: <reason>"`` for the last frame.
+    frontend, config, camera, bg, fusion
+        The front end, the engine's and the camera stage's settings, the compensated
+        background model and the fusion stage.
+    small_region, hold_back, registration, scene_cut, still_switch
+        The special behaviours (:mod:`bgsub.engines.parts`; ``still_switch`` None when
+        ``still_model`` is 0).
     """
 
     def __init__(self, frontend: MotionFrontEnd, *, engine: Optional[EngineConfig] = None,

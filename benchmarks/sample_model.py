@@ -6,7 +6,7 @@ pixel keeps N past values and is background when at least ``min_matches`` of the
 motion, conservative random update with neighbour diffusion) in for `CompensatedBackground`
 and runs `benchmarks/pipeline_real.py` with it, to measure whether the background model is what
 limits UCSD (docs/BENCHMARKS.md, "Tried and rejected"). The engines' own sample model,
-:class:`bgsub.background.foreground.SampleBackground`, differs: it is never warped and is used
+:class:`bgsub.background.sample.SampleBackground`, differs: it is never warped and is used
 only while the camera is judged still.
 
 Usage (minutes; one thread)::
@@ -27,16 +27,17 @@ import cv2
 import numpy as np
 
 import bgsub.engines.moving
-from bgsub.background.foreground import BackgroundParams, _warp
+from bgsub.background.compensated import BackgroundConfig as BackgroundParams
+from bgsub.background.compensated import warp_image as _warp
 
 
 class SampleBackground:
-    """ViBe-style model with :class:`bgsub.background.foreground.CompensatedBackground`'s interface."""
+    """ViBe-style model with :class:`bgsub.background.compensated.CompensatedBackground`'s interface."""
 
     def __init__(self, params: Optional[BackgroundParams] = None, *, samples: int = 20,
                  radius: float = 20.0, min_matches: int = 2, subsample: int = 16,
                  seed: int = 0) -> None:
-        self.params = params or BackgroundParams()
+        self.params = self.config = params or BackgroundParams()
         self.n, self.radius, self.min_matches, self.subsample = samples, radius, min_matches, subsample
         self.rng = np.random.default_rng(seed)
         self.s: Optional[np.ndarray] = None  # (N, H, W, C) uint8

@@ -122,7 +122,7 @@ def test_an_empty_engine_name_is_refused():
 
 def test_numpy_numbers_and_integers_for_numbers_are_accepted():
     engine = create_engine("grbm", stride=np.int64(8), alpha=1, fg_alpha=np.float32(0.01))
-    assert engine.stride == 8 and engine.bg.params.alpha == 1.0
+    assert engine.frontend.flow.stride == 8 and engine.bg.config.alpha == 1.0
 
 
 def _static_with_square(n_before, n_with, seed=3):

@@ -7,8 +7,14 @@ import pytest
 from bgsub.engines import create_engine, get_engine_spec
 from bgsub.errors import InputError
 from bgsub.motion.global_motion import GlobalMotion, corner_error
-from bgsub.engines.moving import SMALL_REGION, MotionResult, spans_frame
-from conftest import OracleMatcher, model_path as _model_path
+from bgsub.background.compensated import CompensatedBackground
+from bgsub.engines.config import EngineConfig
+from bgsub.engines.frontend import MotionResult
+from bgsub.engines.frontends.grbm import GrbmFrontEnd, Reading
+from bgsub.engines.frontends.lucas_kanade import LucasKanadeFrontEnd
+from bgsub.engines.moving import MovingCameraEngine, work_size
+from bgsub.engines.parts import SMALL_REGION, FrozenModelRegistration, spans_frame
+from conftest import OracleMatcher, model_path as _model_path, random_texture as _texture, shifted as _shift
 
 
 def _world(seed=0, h=300, w=460):
@@ -147,9 +153,9 @@ def test_a_textured_object_over_a_blank_background_is_found(name):
 
 @pytest.mark.parametrize("name", ["compensated", "grbm"])
 def test_a_textured_object_over_a_noisy_ramp_is_found(name):
-    # The ramp's noise has structure-tensor texture of its own: grbm read it as random motions
-    # of up to 13 px, which RANSAC fitted as the camera's (F 0.24 on a longer clip). Noise-level
-    # texture beside one compact textured region is not read (flowfield.WEAK_TEXTURE).
+    # The ramp's noise has structure-tensor texture of its own, which a patch reader could take
+    # for random motions for RANSAC to fit as the camera's. Noise-level texture beside one
+    # compact textured region is not read (flowfield.WEAK_TEXTURE).
     f, statuses = _scored(_engine_with(name), _over_blank(n=20, ramp=True), skip=3)
     assert f > 0.7, (f, statuses)
     # No fitted motion was taken for the camera's (compensated also has frames with too few
@@ -179,8 +185,8 @@ def test_a_still_cameras_sub_pixel_readings_are_held_back_not_lost(name):
 
 @pytest.mark.parametrize("name", ["compensated", "grbm"])
 def test_a_frozen_model_follows_a_slow_pan(name):
-    # 0.2 px per frame: every reading is below still_below, the pan is not (all were dropped
-    # once, and the frozen model stood still while the scene moved: 90 % foreground).
+    # 0.2 px per frame: every reading is below still_below, the pan is not (dropped, the
+    # frozen model would stand still while the scene moves).
     rng = np.random.default_rng(0)
     texture = cv2.GaussianBlur(rng.integers(0, 255, (300, 420), dtype=np.uint8), (0, 0), 1.2)
     eng = _engine_with(name)
@@ -196,28 +202,25 @@ def test_a_frozen_model_follows_a_slow_pan(name):
 @pytest.mark.parametrize("name", ["compensated", "grbm"])
 def test_a_frozen_model_follows_a_pan_without_drifting_or_blurring(name):
     # Learn 5 frames, then learning_rate=0 for 35 frames of a 3.3 px/frame pan: the model is
-    # warped 35 times without being refreshed (grbm before this: drift and blur made 90 % of
-    # the frame foreground by the 20th frame).
+    # warped 35 times without being refreshed (drift and blur would show as false foreground).
     eng = _engine_with(name)
     false = []
     for k, (frame, _) in enumerate(_frames(n=40, pan=3.3, square=False)):
         mask = eng.apply(frame, learning_rate=-1 if k < 5 else 0)
         false.append(np.count_nonzero(mask) / mask.size)
-    # (Until the frozen model was registered by a fit to tracked corners, not by a shift
-    # alone, grbm still drifted slowly: 12 % at the 35th frozen frame.)
     assert max(false) < 0.02, np.round(false, 3)
 
 
 def test_a_frozen_model_is_registered_to_the_frame():
     # A motion estimate 0.4 px off (x) and 0.3 px (y) is moved most of the way to the true
     # shift by registering the frozen model to the frame (each frame corrects what is left).
-    eng = _engine_with("compensated")
     world = _world()
-    eng.apply(np.ascontiguousarray(world[40:220, 20:260]))
+    model = CompensatedBackground()
+    model.update(np.ascontiguousarray(world[40:220, 20:260]))
     second = cv2.warpAffine(world, np.float32([[1, 0, -22], [0, 1, -41]]), (240, 180))
     gray = cv2.cvtColor(second, cv2.COLOR_BGR2GRAY)
     biased = np.array([[1, 0, -1.6], [0, 1, -0.7], [0, 0, 1.0]])
-    corrected = eng._registered_to_model(biased, gray)
+    corrected = FrozenModelRegistration("homography").register(biased, gray, model, small=False)
     error_before = np.abs(biased[:2, 2] - [-2.0, -1.0])
     error_after = np.abs(corrected[:2, 2] - [-2.0, -1.0])
     assert np.all(error_after < error_before / 2), (error_before, error_after)
@@ -275,20 +278,6 @@ def test_only_weighted_inliers_count_towards_the_span():
 
 def test_a_fit_with_no_inliers_is_not_refused_for_its_span():
     assert spans_frame(_motion_result(np.zeros((0, 2)), []), (100, 100), 0.33)
-
-
-def test_pixels_without_history_never_count_towards_a_scene_cut():
-    """After a restart every pixel is young; were their score counted against the pixels with
-    history, a young_score above the threshold would restart the model on every frame."""
-    from bgsub.background.foreground import BackgroundParams
-    from bgsub.engines.moving import CompensatedEngine
-
-    eng = CompensatedEngine(background=BackgroundParams(young_score=1.5, min_age=3))
-    statuses = []
-    for frame, _ in _frames(n=8):
-        eng.apply(frame)
-        statuses.append(eng.last_status)
-    assert "fallback: scene cut" not in statuses, statuses
 
 
 def test_static_scene_under_pan_has_almost_no_foreground():
@@ -383,8 +372,7 @@ def test_frames_smaller_than_the_models_patches_are_refused():
     ((640, 480), (320, 240)),
 ])
 def test_resizing_to_the_work_width_keeps_a_readable_height(size, work):
-    eng = create_engine("grbm")
-    assert eng._work_size(*size) == work
+    assert work_size(*size, 320) == work
 
 
 def test_a_wide_flat_video_runs_at_the_default_work_width():
@@ -396,22 +384,24 @@ def test_a_wide_flat_video_runs_at_the_default_work_width():
     assert mask.shape == (80, 1000) and eng.last_status == "ok"
 
 
-def test_grbm_engine_class_has_the_registered_defaults():
-    """GrbmEngine() and create_engine("grbm") are the same engine (README's figures)."""
-    from bgsub.engines.moving import CompensatedEngine, GrbmEngine
+@pytest.mark.parametrize("frontend_type, name", [(GrbmFrontEnd, "grbm"),
+                                                 (LucasKanadeFrontEnd, "compensated")])
+def test_an_engine_built_on_a_front_end_has_the_registered_defaults(frontend_type, name):
+    """MovingCameraEngine(front end) and create_engine(name) are the same engine: the front
+    end's overrides of the stage defaults (grbm's tuned fusion) apply to both."""
+    direct, registered = MovingCameraEngine(frontend_type()), create_engine(name)
+    for engine in (direct, registered):
+        assert isinstance(engine, MovingCameraEngine)
+    assert direct.config == registered.config and direct.camera == registered.camera
+    assert direct.bg.config == registered.bg.config
+    assert direct.fusion.config == registered.fusion.config
+    assert direct.frontend.config == registered.frontend.config
+    for key, value in frontend_type.stage_defaults.items():
+        assert get_engine_spec(name).params[key].default == value
 
-    for cls, name in ((GrbmEngine, "grbm"), (CompensatedEngine, "compensated")):
-        direct, registered = cls(), create_engine(name)
-        for key, value in vars(registered).items():
-            if key.startswith("_") or key == "model":
-                continue
-            other = vars(direct)[key]
-            if key == "bg":
-                value, other = value.params, other.params
-            if key == "still_bg":
-                value, other = [(m.n, m.radius, m.min_matches, m.subsample)
-                                for m in (value, other)]
-            assert other == value, (name, key)
+
+def test_grbm_front_end_reads_with_the_registered_flow_settings():
+    assert GrbmFrontEnd().flow == create_engine("grbm").frontend.flow
 
 
 def test_parameters_at_their_bounds_are_accepted():
@@ -419,20 +409,18 @@ def test_parameters_at_their_bounds_are_accepted():
 
 
 def test_thread_limit_is_scoped_to_the_frame():
-    from bgsub.engines.moving import _openblas, limited_threads
+    from bgsub.engines.threads import blas_threads, limited_threads
 
     saved = cv2.getNumThreads()
     cv2.setNumThreads(2)
-    blas = _openblas()
-    before = blas[1]() if blas else None
+    before = blas_threads()
     try:
         with limited_threads(1):
             assert cv2.getNumThreads() == 1
-            if blas:
-                assert blas[1]() == 1
+            if before is not None:
+                assert blas_threads() == 1
         assert cv2.getNumThreads() == 2
-        if blas:
-            assert blas[1]() == before
+        assert blas_threads() == before
         with limited_threads(0):  # 0: leave as configured
             assert cv2.getNumThreads() == 2
     finally:
@@ -454,13 +442,31 @@ def test_grbm_step_restores_thread_settings():
 def _fake_reading(finest, support):
     from types import SimpleNamespace
 
-    from bgsub.motion.global_motion import GlobalMotion
-
     n = 10
     flow = SimpleNamespace(levels=3, finest=finest, centres=np.zeros((n, 2), np.float32),
                            disp=np.zeros((n, 2), np.float32), weights=np.ones(n, np.float32),
                            texture=np.ones(n, np.float32), beyond=None)
-    return flow, GlobalMotion(np.eye(3), np.ones(n, bool), True, "ok"), support
+    return Reading(flow, GlobalMotion(np.eye(3), np.ones(n, bool), True, "ok"), support)
+
+
+class _ScriptedReads(GrbmFrontEnd):
+    """The grbm front end with its readouts replaced by ones of a given support per level;
+    records each readout's ``(finest, stride)``."""
+
+    def __init__(self, support, **params):
+        front = GrbmFrontEnd.from_params(model=OracleMatcher(), **params)
+        super().__init__(front.config, flow=front.flow)
+        self.support, self.calls = support, []
+
+    def read(self, prev, cur, prior, *, finest, fit, stride=None):
+        self.calls.append((finest, stride))
+        return _fake_reading(finest, self.support[finest])
+
+
+def _measure_once(frontend):
+    gray = np.zeros((60, 80), np.uint8)
+    engine = MovingCameraEngine(frontend)
+    frontend.measure(gray, gray, prior=None, fit=engine.fit)
 
 
 @pytest.mark.parametrize("coarser_below, expected, read", [
@@ -469,23 +475,13 @@ def _fake_reading(finest, support):
     (0.2, 0, [0]),           # the final level is supported: read once
     (0.0, 0, [0]),           # off
 ])
-def test_poorly_supported_readout_is_replaced_by_a_coarser_one(monkeypatch, coarser_below,
-                                                                expected, read):
+def test_poorly_supported_readout_is_replaced_by_a_coarser_one(coarser_below, expected, read):
     """Below ``coarser_below`` support the engine also reads up to two levels coarser and
     keeps the best-supported reading."""
-    eng = create_engine("grbm", model=OracleMatcher(), coarser_below=coarser_below)
-    support = {0: 0.3, 1: 0.9, 2: 0.6}
-    calls = []
-
-    def fake_read(prev, gray, prior, finest, stride=None):
-        calls.append(finest)
-        return _fake_reading(finest, support[finest])
-
-    monkeypatch.setattr(eng, "_read", fake_read)
-    gray = np.zeros((60, 80), np.uint8)
-    eng._motion(gray, gray, None)
-    assert eng._last_flow.finest == expected
-    assert calls == read
+    frontend = _ScriptedReads({0: 0.3, 1: 0.9, 2: 0.6}, coarser_below=coarser_below)
+    _measure_once(frontend)
+    assert frontend.last_flow.finest == expected
+    assert [finest for finest, _ in frontend.calls] == read
 
 
 def test_grbm_contrast_floor_applies_to_its_own_copy_of_the_model():
@@ -496,17 +492,15 @@ def test_grbm_contrast_floor_applies_to_its_own_copy_of_the_model():
     model = load_model("natural")
     own = model.contrast_floor
     eng = create_engine("grbm", model=model, contrast_floor=0.005)
-    assert eng.model.contrast_floor == 0.005
+    assert eng.frontend.model.contrast_floor == 0.005
     assert model.contrast_floor == own
-    assert create_engine("grbm", model=model, contrast_floor=0).model is model
+    assert create_engine("grbm", model=model, contrast_floor=0).frontend.model is model
 
 
 def test_grbm_reads_a_low_contrast_pan_with_the_default_contrast_floor():
     """A pan filmed at low contrast (RMS ~3 gray levels per patch, below the shipped models'
     0.02 floor of 5.1; a gentle ramp keeps the frame itself above the blank-frame test) is read
     by the default engine and missed with the model's own floor."""
-    from conftest import random_texture as _texture, shifted as _shift
-
     h, w = 120, 160
     base = _texture(h, w, seed=11)[:h, :w].astype(np.float32)
     ramp = np.linspace(-15, 15, w, dtype=np.float32)[None, :]
@@ -519,7 +513,7 @@ def test_grbm_reads_a_low_contrast_pan_with_the_default_contrast_floor():
         for f in frames:
             eng.apply(f)
         assert eng.last_status != "fallback: blank or textureless frame"
-        found[floor] = eng._last.motion
+        found[floor] = eng.last_result.motion
     assert found[0.005].ok and abs(found[0.005].matrix[0, 2] + 1.5) < 0.5
     assert not found[0].ok or abs(found[0].matrix[0, 2] + 1.5) > 0.5
 
@@ -530,55 +524,53 @@ def test_grbm_finds_a_zoom_and_rotation_from_a_translation_start(zoom, angle, sh
     the full model, so a first frame pair (no previous motion) that zooms by 5 % and rotates
     by 3 degrees is still recovered to a fraction of a pixel at the corners."""
     from bgsub.motion.global_motion import corner_distances
-    from conftest import random_texture as _texture
-
     h, w = 240, 320
     first = _texture(h, w, seed=5)[:h, :w].astype(np.uint8)
     m = cv2.getRotationMatrix2D((w / 2, h / 2), angle, zoom)
     m[0, 2] += shift
     truth = np.vstack([m, [0.0, 0.0, 1.0]])
     second = cv2.warpPerspective(first, truth, (w, h), borderMode=cv2.BORDER_REFLECT)
-    found = create_engine("grbm")._motion(first, second, None).motion
+    eng = create_engine("grbm")
+    front = eng.frontend
+    found = front.measure(front.frame_data(first), front.frame_data(second), prior=None,
+                          fit=eng.fit).motion
     assert found.ok
     assert np.median(corner_distances(found.matrix, truth, width=w, height=h)) < 0.5
 
 
-def test_coarser_rereads_use_the_coarser_stride(monkeypatch):
+def test_coarser_rereads_use_the_coarser_stride():
     """The fallback readouts one and two levels coarser read on ``coarser_stride``'s grid; the
     first readout on the engine's ``stride``."""
-    eng = create_engine("grbm", model=OracleMatcher(), coarser_below=0.95, stride=8,
-                        coarser_stride=20)
-    strides = []
-
-    def fake_read(prev, gray, prior, finest, stride=None):
-        strides.append((finest, stride))
-        return _fake_reading(finest, 0.3)
-
-    monkeypatch.setattr(eng, "_read", fake_read)
-    gray = np.zeros((60, 80), np.uint8)
-    eng._motion(gray, gray, None)
-    assert strides == [(0, None), (1, 20), (2, 20)]
+    frontend = _ScriptedReads({0: 0.3, 1: 0.3, 2: 0.3}, coarser_below=0.95, stride=8,
+                              coarser_stride=20)
+    _measure_once(frontend)
+    assert frontend.calls == [(0, None), (1, 20), (2, 20)]
 
 
-def test_coarser_stride_reaches_the_flow_estimate(monkeypatch):
-    import bgsub.engines.moving as pipeline
+class _RecordedReads(GrbmFrontEnd):
+    """The grbm front end recording each readout's final level and grid step."""
 
-    seen = []
-    real = pipeline.estimate_flow
+    def __init__(self, **params):
+        front = GrbmFrontEnd.from_params(**params)
+        super().__init__(front.config, flow=front.flow)
+        self.seen = []
 
-    def spy(frame1, frame2, config, **kw):
-        seen.append((config.finest, config.stride))
-        return real(frame1, frame2, config, **kw)
+    def read(self, prev, cur, prior, *, finest, fit, stride=None):
+        reading = super().read(prev, cur, prior, finest=finest, fit=fit, stride=stride)
+        self.seen.append((finest, reading.flow.stride))
+        return reading
 
-    monkeypatch.setattr(pipeline, "estimate_flow", spy)
+
+def test_coarser_stride_reaches_the_flow_estimate():
     # coarser_below above 1: every frame is re-read coarser, even a perfectly supported one.
-    eng = create_engine("grbm", model=OracleMatcher(), stride=8, coarser_stride=16,
-                        coarser_below=1.01, work_width=0)
+    frontend = _RecordedReads(model=OracleMatcher(), stride=8, coarser_stride=16,
+                              coarser_below=1.01)
+    eng = MovingCameraEngine(frontend, engine=EngineConfig(work_width=0))
     rng = np.random.default_rng(0)
     frame = cv2.GaussianBlur((rng.random((240, 320)) * 255).astype(np.uint8), (0, 0), 1.5)
     eng.apply(frame)
     eng.apply(np.roll(frame, 2, axis=1))
-    assert (0, 8) in seen and (1, 16) in seen
+    assert (0, 8) in frontend.seen and (1, 16) in frontend.seen
 
 
 def _engine_with(name, **params):
@@ -611,16 +603,33 @@ def test_a_reused_input_buffer_gives_the_same_masks(name):
         np.testing.assert_array_equal(got, fresh.apply(frame.copy()))
 
 
-@pytest.mark.parametrize("failing", ["_prepare", "_motion"])
-def test_an_error_on_either_thread_reaches_the_caller(monkeypatch, failing):
-    eng = create_engine("compensated", overlap=1)
+class _Failing(LucasKanadeFrontEnd):
+    """The Lucas-Kanade front end, but ``prepare`` or ``measure`` raises once armed."""
+
+    def __init__(self, failing):
+        super().__init__()
+        self.failing, self.armed = failing, False
+
+    def fail_if_armed(self, method):
+        if self.armed and self.failing == method:
+            raise RuntimeError(f"{method} failed")
+
+    def prepare(self, data):
+        self.fail_if_armed("prepare")
+        super().prepare(data)
+
+    def measure(self, prev, cur, *, prior, fit):
+        self.fail_if_armed("measure")
+        return super().measure(prev, cur, prior=prior, fit=fit)
+
+
+@pytest.mark.parametrize("failing", ["prepare", "measure"])
+def test_an_error_on_either_thread_reaches_the_caller(failing):
+    frontend = _Failing(failing)
+    eng = MovingCameraEngine(frontend, engine=EngineConfig(overlap=1))
     frames = [f for f, _ in _frames(n=3)]
     eng.apply(frames[0])
-
-    def boom(*args):
-        raise RuntimeError(f"{failing} failed")
-
-    monkeypatch.setattr(eng, failing, boom)
+    frontend.armed = True
     with pytest.raises(RuntimeError, match=f"{failing} failed"):
         eng.apply(frames[1])
 

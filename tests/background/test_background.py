@@ -1,18 +1,14 @@
-"""bgsub.background.foreground: the camera-compensated background model, flow violation, fusion."""
+"""bgsub.background: the camera-compensated background model (compensated), flow violation and
+fusion (fusion)."""
 
 import cv2
 import numpy as np
 import pytest
 
 from bgsub.errors import InputError, describe_shape
-from bgsub.background.foreground import (
-    BackgroundParams,
-    CompensatedBackground,
-    clean_mask,
-    flow_violation_map,
-    fuse_masks,
-    still_in_image_map,
-)
+from bgsub.background.compensated import BackgroundConfig, CompensatedBackground
+from bgsub.background.fusion import (clean_mask, flow_violation_map, fuse_masks,
+                                     still_in_image_map)
 
 
 def _scene(h=120, w=160, seed=0):
@@ -66,7 +62,7 @@ def test_a_sharp_warp_keeps_a_frozen_models_detail(sharp, kept):
 
 
 def test_uncovered_border_has_no_history_and_is_not_foreground():
-    bg = CompensatedBackground(BackgroundParams())
+    bg = CompensatedBackground(BackgroundConfig())
     first = np.full((50, 60, 3), 100, np.uint8)
     bg.reset(first)
     bg.update(first)
@@ -74,14 +70,14 @@ def test_uncovered_border_has_no_history_and_is_not_foreground():
     assert np.all(bg.age[:, -9:] == 0) and np.all(bg.age[:, :40] >= 1)
     new = first.copy()
     new[:, -10:] = 250  # new content scrolling in: different, but no history there
-    young = bg.params.young_score
+    young = bg.config.young_score
     assert 0 < young < 1  # below the decision: only motion evidence can make it foreground
     assert np.all(bg.score(new)[:, -9:] == np.float32(young))
     assert not fuse_masks(bg.score(new)).any()
 
 
 def test_young_pixels_are_foreground_only_with_motion_evidence():
-    bg = CompensatedBackground(BackgroundParams())
+    bg = CompensatedBackground(BackgroundConfig())
     first = np.full((50, 60), 100, np.uint8)
     bg.reset(first)
     bg.update(first)
@@ -144,7 +140,7 @@ def test_update_after_score_of_the_same_frame_equals_a_fresh_update():
     world = _scene(seed=3)
     frames = [_view(world, x0) for x0 in (0, 2, 4, 6)]
     shift = np.array([[1, 0, -2.0], [0, 1, 0], [0, 0, 1]])
-    models = [CompensatedBackground(BackgroundParams()) for _ in range(2)]
+    models = [CompensatedBackground(BackgroundConfig()) for _ in range(2)]
     for bg in models:
         bg.reset(frames[0])
         bg.update(frames[0])

@@ -1,0 +1,315 @@
+"""The camera-compensated background model: per-pixel colour statistics kept in the current
+frame's coordinates (:class:`CompensatedBackground`) and its settings (:class:`BackgroundConfig`).
+
+Every frame the model is warped by the camera motion before it is compared and updated. Each
+pixel has an age (frames of history); pixels that scroll in at the border start at age 0 and,
+until they have ``min_age`` frames of history, are not called foreground on a background
+difference (they score ``young_score``, below the threshold): only motion evidence can make
+them foreground. Young pixels learn fast (rate ``1 / (age + 1)``, a plain average), old ones at
+``alpha``. The comparison is against the background's local min/max envelope (``envelope``
+px), so the sub-pixel misregistration that every warp leaves on strong edges does not light up
+as foreground.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional
+
+import cv2
+import numpy as np
+
+from bgsub.errors import InputError, describe_shape
+from bgsub.motion.global_motion import is_affine, is_identity
+from bgsub.settings import check_settings, setting
+
+__all__ = ["BackgroundConfig", "CompensatedBackground", "warp_image"]
+
+
+@dataclass(frozen=True)
+class BackgroundConfig:
+    """Settings of :class:`CompensatedBackground` (gray levels are 0-255); each field's
+    meaning, default and bounds are in its :func:`~bgsub.settings.setting`.
+
+    ``fg_alpha`` is small, so an object is not learnt into the background while it moves, but
+    not zero, so a ghost (background uncovered by an object that was there when the model
+    started) fades. ``init_std`` caps the variance update (a squared residual counts at most
+    ``(4 init_std)^2``, so a passing object cannot blind the model) and is the spread of the
+    very first frame of a model that was never :meth:`~CompensatedBackground.reset`; a model
+    that is reset and then updated with the same frame (as the engines restart) starts at
+    ``min_std``.
+    """
+
+    alpha: float = setting(0.1, "background learning rate of pixels with a long history",
+                           low=0, high=1)
+    fg_alpha: float = setting(0.01, "learning rate of pixels called foreground (lets ghosts "
+                                    "fade)", low=0, high=1)
+    k_sigma: float = setting(2.0, "foreground beyond this many background standard deviations "
+                                  "...", low=0)
+    min_diff: float = setting(10.0, "... and this many gray levels (0-255)", low=0)
+    init_std: float = setting(12.0, "standard deviation (gray levels) of a model's first frame; "
+                                    "a squared residual counts at most (4 init_std)^2 in the "
+                                    "variance update, so a passing object cannot blind the "
+                                    "model", above=0)
+    min_std: float = setting(6.0, "floor of the learnt standard deviation (gray levels)",
+                             above=0)
+    envelope: int = setting(1, "a pixel is compared with the background's min/max over this "
+                               "neighbourhood (3 tolerates a 1-px misregistration)",
+                            low=1, high=31)
+    min_age: int = setting(1, "frames of history a pixel needs before a background difference "
+                              "can make it foreground (see young_score)", low=0)
+    max_age: int = setting(255, "ages are capped here (only the young pixels' rate 1 / (age + "
+                                "1) depends on them)", low=1)
+    young_score: float = setting(0.6, "score of pixels younger than min_age (below 1: "
+                                      "foreground only where local motion evidence boosts it; "
+                                      "0 = never)", low=0, high=1)
+
+    def __post_init__(self) -> None:
+        check_settings(self)
+
+
+class CompensatedBackground:
+    """A per-pixel colour background model that moves with the camera.
+
+    Usage per frame: :meth:`warp` by the camera motion (previous -> current frame), then
+    :meth:`score` the current frame, then :meth:`update` with the decided mask.
+    """
+
+    def __init__(self, config: Optional[BackgroundConfig] = None) -> None:
+        self.config = config or BackgroundConfig()
+        self.mean: Optional[np.ndarray] = None  # (H, W, C) float32, 0-255
+        self.var: Optional[np.ndarray] = None  # (H, W, C) float32
+        self.age: Optional[np.ndarray] = None  # (H, W) float32
+        # (frame, frame as float, frame - mean, its square or None) from the last score(),
+        # reused by update() when it is given the same frame object and the model has not
+        # changed since.
+        self._diff: Optional[tuple] = None
+
+    @staticmethod
+    def _as_float(frame: np.ndarray) -> np.ndarray:
+        f = np.asarray(frame, dtype=np.float32)
+        return f[:, :, None] if f.ndim == 2 else f
+
+    def _check(self, frame: np.ndarray) -> None:
+        """``InputError`` unless ``frame`` is (H, W) or (H, W, C) and, once the model exists,
+        of its size and channel count (shapes only: called every frame)."""
+        shape = _frame_shape(frame)
+        if self.mean is not None:
+            h, w, c = self.mean.shape
+            if shape[:2] != (h, w) or (shape[2] if len(shape) == 3 else 1) != c:
+                raise InputError(f"the frame is {describe_shape(shape)}, the background model "
+                                 f"{describe_shape((h, w, c))} (reset() it for another stream)")
+
+    def reset(self, frame: np.ndarray) -> None:
+        """Start over from ``frame`` ((H, W, C) or (H, W) uint8): every pixel age 0."""
+        _frame_shape(frame)
+        f = self._as_float(frame)
+        self.mean = f.copy()
+        self.var = np.full_like(f, self.config.init_std**2)
+        self.age = np.zeros(f.shape[:2], np.float32)
+        self._diff = None
+
+    def warp(self, matrix: np.ndarray, *, sharp: bool = False) -> None:
+        """Move the model into the current frame's coordinates.
+
+        Parameters
+        ----------
+        matrix : (3, 3) float64
+            Previous-frame -> current-frame pixel coordinates.
+        sharp : bool
+            Resample the mean and variance with a Lanczos kernel instead of bilinearly: about
+            twice the cost, but for a model that is not learning (``learning_rate=0``) the
+            bilinear blur adds up frame after frame (a fine texture loses half its contrast
+            within ten frames of a pan) and becomes false foreground.
+
+        Pixels of the current frame that the previous one did not see get age 0 (their mean and
+        variance are then replaced by the current frame in :meth:`update`).
+        """
+        if self.mean is None or is_identity(matrix, atol=1e-9):
+            return
+        h, w = self.age.shape
+        flags = cv2.INTER_LANCZOS4 if sharp else cv2.INTER_LINEAR
+        self._diff = None
+        self.mean = warp_image(self.mean, matrix, (w, h), flags, cv2.BORDER_REPLICATE)
+        self.var = warp_image(self.var, matrix, (w, h), flags, cv2.BORDER_REPLICATE)
+        if sharp:
+            # Lanczos rings: keep the values in the range they can take.
+            np.clip(self.mean, 0.0, 255.0, out=self.mean)
+            np.maximum(self.var, np.float32(self.config.min_std ** 2), out=self.var)
+        # Age with a zero border: uncovered pixels have no history. Linear interpolation lets
+        # a pixel half-inside inherit a lower age, which is the cautious side.
+        self.age = warp_image(self.age, matrix, (w, h), cv2.INTER_LINEAR, cv2.BORDER_CONSTANT)
+
+    def score(self, frame: np.ndarray) -> np.ndarray:
+        """How far ``frame`` is from the background, in units of the decision threshold.
+
+        Parameters
+        ----------
+        frame : (H, W, C) or (H, W) uint8, same channels as at :meth:`reset`
+
+        Returns
+        -------
+        (H, W) float32 >= 0; values > 1 differ by more than ``k_sigma`` std devs and
+        ``min_diff`` gray levels (the larger of the two ratios' minimum). ``young_score``
+        where the pixel is younger than ``min_age``. All 0 before the model's first
+        :meth:`reset` or :meth:`update` (no background yet: nothing differs from it, as
+        OpenCV's subtractors answer their first frame).
+
+        Raises
+        ------
+        InputError
+            ``frame`` is not of the model's size and channel count.
+        """
+        self._check(frame)
+        p = self.config
+        f = self._as_float(frame)
+        if self.mean is None:
+            return np.zeros(f.shape[:2], np.float32)
+        signed = f - self.mean
+        if p.envelope > 1:
+            k = np.ones((p.envelope, p.envelope), np.uint8)
+            lo = _channels(cv2.erode(self.mean, k), f.shape[2])
+            hi = _channels(cv2.dilate(self.mean, k), f.shape[2])
+            diff = np.maximum(np.maximum(f - hi, lo - f), 0.0)
+            sq = np.multiply(diff, diff, out=diff)
+            self._diff = (frame, f, signed, None)
+        else:
+            sq = signed * signed
+            self._diff = (frame, f, signed, sq)  # update() reuses both
+        # diff / max(k * std, min_diff) == min(diff / (k std), diff / min_diff); compared in
+        # squares (no abs, no sqrt of the variance) and the root taken of the channel maximum.
+        floor = max(p.min_diff, p.k_sigma * p.min_std)
+        denom = self.var * np.float32(p.k_sigma * p.k_sigma)
+        np.maximum(denom, np.float32(floor * floor), out=denom)
+        ratio = np.divide(sq, denom, out=denom)
+        if ratio.shape[2] == 1:
+            out = np.array(ratio[:, :, 0], dtype=np.float32)  # own contiguous copy
+        else:
+            out = np.maximum(ratio[:, :, 0], ratio[:, :, 1])
+            for c in range(2, ratio.shape[2]):
+                np.maximum(out, ratio[:, :, c], out=out)
+        np.sqrt(out, out=out)
+        out[self.age < p.min_age] = p.young_score
+        return out
+
+    def update(self, frame: np.ndarray, fgmask: Optional[np.ndarray] = None,
+               learning_rate: float = -1.0) -> None:
+        """Blend ``frame`` into the model.
+
+        Parameters
+        ----------
+        frame : (H, W, C) or (H, W) uint8
+        fgmask : (H, W) uint8/bool, optional
+            Pixels called foreground learn at ``fg_alpha`` instead (automatic rate only).
+        learning_rate : float
+            OpenCV's convention. Negative: the model's own rates (``1 / (age + 1)`` for young
+            pixels, ``alpha``, ``fg_alpha`` under ``fgmask``). In [0, 1]: every pixel with a
+            history learns at this rate, foreground or not; 0 leaves them unchanged and 1
+            restarts the model from ``frame`` (which may then be of another size, as with
+            :meth:`reset`). Pixels without history (uncovered at the border) take the frame
+            whatever the rate: there is nothing else to put there.
+
+        Raises
+        ------
+        InputError
+            ``learning_rate`` above 1; ``frame`` not of the model's size and channel count (but
+            for a restart), or ``fgmask`` not of the frame's size.
+        """
+        p = self.config
+        if not learning_rate <= 1.0:  # (also refuses NaN)
+            raise InputError(f"the learning rate must be at most 1 (negative = automatic), "
+                             f"not {learning_rate}")
+        if fgmask is not None and np.shape(fgmask) != np.shape(frame)[:2]:
+            raise InputError(f"the foreground mask has shape {np.shape(fgmask)}, the frame "
+                             f"{np.shape(frame)}: the mask must be (H, W) of the frame's size")
+        if learning_rate >= 1.0 or self.mean is None:
+            self.reset(frame)
+            self.age[:] = 1.0
+            return
+        self._check(frame)
+        cached, self._diff = self._diff, None
+        sq = None
+        if cached is not None and cached[0] is frame and self.mean is not None:
+            # score() of this frame: d = f - mean (and its square), still current.
+            f, d, sq = cached[1], cached[2], cached[3]
+        else:
+            f = self._as_float(frame)
+            d = None
+        if d is None:
+            d = f - self.mean
+        # rate = max(1 / (age + 1), alpha), in place (these are whole-frame float32 arrays).
+        rate = self.age + np.float32(1.0)
+        np.reciprocal(rate, out=rate)
+        if learning_rate >= 0.0:
+            # The caller's rate for every pixel with a history (age >= 1).
+            np.copyto(rate, np.float32(learning_rate), where=self.age >= 1.0)
+        else:
+            np.maximum(rate, np.float32(p.alpha), out=rate)
+            if fgmask is not None:
+                fg = np.asarray(fgmask).astype(bool)
+                np.copyto(rate, np.float32(p.fg_alpha), where=fg & (self.age >= p.min_age))
+        r = _per_channel(rate, d.shape[2])
+        d2 = np.multiply(d, d) if sq is None else sq
+        d *= r
+        self.mean += d
+        # Variance of background pixels only (with the clipped residual): a passing object must
+        # not inflate the spread and blind the model.
+        np.minimum(d2, np.float32((4.0 * p.init_std) ** 2), out=d2)
+        d2 -= self.var
+        d2 *= r
+        self.var += d2
+        np.maximum(self.var, np.float32(p.min_std**2), out=self.var)
+        self.age += np.float32(1.0)
+        np.minimum(self.age, np.float32(p.max_age), out=self.age)
+
+    def background_image(self) -> Optional[np.ndarray]:
+        """The mean as uint8 ((H, W, 3) or (H, W)), or None before the first frame."""
+        if self.mean is None:
+            return None
+        img = np.clip(self.mean + 0.5, 0, 255).astype(np.uint8)
+        return img[:, :, 0] if img.shape[2] == 1 else img
+
+
+
+def _frame_shape(frame: np.ndarray) -> tuple:
+    """The shape of a background-model frame; ``InputError`` unless (H, W) or (H, W, C)."""
+    shape = np.shape(frame)
+    if len(shape) not in (2, 3):
+        raise InputError(f"a background-model frame must be (H, W) or (H, W, C), not shape "
+                         f"{shape}")
+    return shape
+
+
+def _channels(a: np.ndarray, c: int) -> np.ndarray:
+    return a[:, :, None] if a.ndim == 2 and c == 1 else a
+
+
+def _per_channel(a: np.ndarray, c: int) -> np.ndarray:
+    """The ``(H, W)`` float32 ``a`` as an ``(H, W, c)`` factor for ``(H, W, c)`` arrays.
+
+    For ``c > 1`` it is repeated into its own contiguous array: numpy broadcasts an
+    ``(H, W, 1)`` operand with an inner loop of only ``c`` elements, which made each of
+    :meth:`CompensatedBackground.update`'s two multiplications ~3x slower than the copy costs
+    (same values either way)."""
+    return a[:, :, None] if c == 1 else cv2.merge([a] * c)
+
+
+def warp_image(img: np.ndarray, matrix: np.ndarray, size: tuple, flags: int,
+               border: int) -> np.ndarray:
+    """``img`` ((H, W) or (H, W, C) float32 or uint8) warped by the (3, 3) ``matrix`` to
+    ``size`` (W, H) with OpenCV's interpolation ``flags`` and ``border`` mode; same dtype and
+    channel count."""
+    if img.ndim == 3 and img.shape[2] == 3:
+        # OpenCV's 4-channel bilinear warp is much faster than its 3-channel one and gives the
+        # same values per channel: go through BGRA.
+        out = warp_image(cv2.cvtColor(img, cv2.COLOR_BGR2BGRA), matrix, size, flags, border)
+        return cv2.cvtColor(out, cv2.COLOR_BGRA2BGR)
+    m = np.asarray(matrix, np.float64)
+    if is_affine(m):
+        # An affine motion (translation, similarity, affine): warpAffine is the same map, cheaper.
+        out = cv2.warpAffine(img, m[:2] / m[2, 2], size, flags=flags, borderMode=border,
+                             borderValue=0.0)
+    else:
+        out = cv2.warpPerspective(img, m, size, flags=flags, borderMode=border, borderValue=0.0)
+    return _channels(out, img.shape[2] if img.ndim == 3 else 1) if img.ndim == 3 else out
+

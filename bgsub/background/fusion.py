@@ -1,0 +1,395 @@
+"""The foreground decision: motion evidence fused with the background model's difference.
+
+* :func:`flow_violation_map`: local motion vectors (gated-RBM patches, tracked corners) that
+  disagree with the motion the camera predicts for their position, splatted to a per-pixel map
+  weighted by their reliability.
+* :func:`still_in_image_map`: pixels that the previous frame explains better unmoved than moved
+  by the camera: an object the camera follows stays put in the image. Combined with the flow
+  violation (the larger of the two), it reaches where patch motion cannot: relative motions
+  beyond the motion readout's range, and pixels too young for the background model.
+* :func:`fuse_masks` multiplies the background score by a gain that rises above 1 where local
+  motion violates the camera's and falls below 1 where it confirms it, thresholds it and cleans
+  the mask (:func:`clean_mask`: morphology, removal of small blobs, filling of enclosed holes).
+
+:class:`Fusion` is that stage as the moving-camera engines run it, with its settings
+(:class:`FusionConfig`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional
+
+import cv2
+import numpy as np
+
+from bgsub.background.compensated import warp_image
+from bgsub.errors import InputError
+from bgsub.motion.global_motion import apply_homography
+from bgsub.settings import check_settings, setting
+
+__all__ = ["FusionConfig", "Fusion", "flow_violation_map", "still_in_image_map", "fuse_masks",
+           "clean_mask"]
+
+
+@dataclass(frozen=True)
+class FusionConfig:
+    """Settings of the foreground decision (:class:`Fusion`); each field's meaning, default and
+    bounds are in its :func:`~bgsub.settings.setting`."""
+
+    flow_boost: float = setting(0.8, "where local motion violates the camera's, the background "
+                                     "difference is multiplied by up to 1 + this", low=0)
+    flow_damp: float = setting(0.8, "where local motion agrees with the camera's, it is "
+                                    "multiplied by down to 1 - this (0 and flow_boost 0 = "
+                                    "background model only)", low=0, high=1)
+    violation_threshold: float = setting(1.5, "disagreement with the camera motion (px) that "
+                                              "counts as a violation", low=0)
+    violation_noise: float = setting(0.0, "... or this many robust standard deviations of the "
+                                          "local vectors' disagreement, if more (0 = fixed "
+                                          "threshold)", low=0)
+    still_cue: float = setting(1.0, "weight of the evidence that a pixel stays put in the "
+                                    "image while the camera moves (an object the camera "
+                                    "follows; 0 = off)", low=0, high=1)
+    threshold: float = setting(1.0, "foreground where the fused score exceeds this (lower = "
+                                    "more foreground)", low=0)
+    min_area: int = setting(30, "blobs smaller than this (working-size pixels) are dropped",
+                            low=0)
+    close: int = setting(9, "morphological closing size (0 or 1 = none)", low=0, high=99)
+    fill_holes: int = setting(5000, "holes enclosed by a foreground blob, up to this many "
+                                    "working-size pixels, are filled (0 = none)", low=0)
+    heal_below: float = setting(0.25, "background differences where the local motion agrees "
+                                      "with the camera (violation below this) are learnt at "
+                                      "the normal rate (ghost healing)", low=0)
+
+    def __post_init__(self) -> None:
+        check_settings(self)
+
+
+class Fusion:
+    """The foreground decision of one frame, in three calls: :meth:`violation` (the motion
+    evidence), :meth:`mask` (fused with the background score, cleaned) and
+    :meth:`learn_slowly` (where the background model should learn at its foreground rate)."""
+
+    def __init__(self, config: Optional[FusionConfig] = None) -> None:
+        self.config = config or FusionConfig()
+
+    def violation(self, points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
+                  matrix: np.ndarray, prev_gray: np.ndarray, gray: np.ndarray, *,
+                  noise_scale: Optional[float] = None) -> Optional[np.ndarray]:
+        """``(h, w) float32`` in [0, 1]: the evidence that a pixel moves otherwise than the
+        camera (``matrix``, (3, 3)): the :func:`flow_violation_map` of the ``(N, 2)`` vectors
+        ``points`` / ``disp`` with ``(N,)`` ``weights`` and the :func:`still_in_image_map` of
+        the two ``(h, w) uint8`` gray frames, whichever is larger. ``noise_scale`` replaces
+        ``violation_noise`` (0: the vectors are one consistent motion, whose spread must not
+        raise the threshold). None when the fusion ignores motion evidence."""
+        c = self.config
+        if c.flow_boost == 0.0 and c.flow_damp == 0.0:
+            return None
+        noise = c.violation_noise if noise_scale is None else noise_scale
+        v = flow_violation_map(points, disp, matrix, weights=weights, shape=gray.shape,
+                               threshold=c.violation_threshold, noise_scale=noise)
+        if c.still_cue > 0:
+            # Either kind of motion evidence counts: the cue is near 0 where it has none (a
+            # still camera, the background), so it never lowers the flow's.
+            still = still_in_image_map(prev_gray, gray, matrix)
+            still *= np.float32(c.still_cue)
+            np.maximum(v, still, out=v)
+        return v
+
+    def mask(self, score: np.ndarray, violation: Optional[np.ndarray]) -> np.ndarray:
+        """The ``(h, w) uint8`` 0/255 mask of the background ``score`` ((h, w) float32) and the
+        :meth:`violation` map: :func:`fuse_masks` with this stage's settings."""
+        c = self.config
+        return fuse_masks(score, violation, flow_boost=c.flow_boost, flow_damp=c.flow_damp,
+                          threshold=c.threshold, min_area=c.min_area, close=c.close,
+                          fill_holes=c.fill_holes)
+
+    def learn_slowly(self, mask: np.ndarray, violation: Optional[np.ndarray]) -> np.ndarray:
+        """``(h, w) bool``: the foreground of ``mask``, less where the local motion confidently
+        agrees with the camera's (there a background difference is a ghost, background
+        uncovered since the model learnt an object there: it heals at the normal rate)."""
+        slow = mask > 0
+        if violation is not None:
+            slow &= ~(violation < self.config.heal_below)
+        return slow
+
+
+def still_in_image_map(
+    prev: np.ndarray,
+    cur: np.ndarray,
+    matrix: np.ndarray,
+    *,
+    window: int = 7,
+    centre: float = 0.3,
+    width: float = 0.1,
+) -> np.ndarray:
+    """Where the current frame is better explained by *no* motion than by the camera's.
+
+    An object the camera follows stays put in the image while its background moves with the
+    camera. Per pixel, the mean absolute difference over a ``window`` square between ``cur``
+    and ``prev`` warped by the camera motion (``r_cam``) and between ``cur`` and ``prev`` as it
+    is (``r_id``) give ``s = (r_cam - r_id) / (r_cam + r_id + 4)`` in (-1, 1); the map is a
+    soft step of ``s`` at ``centre``. Where the camera barely moves the two agree and ``s`` is
+    near 0: the map is near 0 (no evidence).
+
+    Parameters
+    ----------
+    prev, cur : (H, W) uint8
+        Consecutive gray frames.
+    matrix : (3, 3) float64
+        The camera motion (previous -> current).
+    window : int
+        Side of the square over which the absolute differences are averaged (px).
+    centre, width : float
+        The soft step: ``1 / (1 + exp(-(s - centre) / width))``, 0.5 at ``s = centre``.
+
+    Returns
+    -------
+    (H, W) float32 in [0, 1]
+
+    Raises
+    ------
+    InputError
+        ``prev`` and ``cur`` are not (H, W) uint8 of one size.
+    """
+    for name, image in (("prev", prev), ("cur", cur)):
+        if getattr(image, "dtype", None) != np.uint8 or image.ndim != 2:
+            raise InputError(f"still_in_image_map takes (H, W) uint8 gray frames; {name} is "
+                             f"{getattr(image, 'dtype', type(image).__name__)} of shape "
+                             f"{np.shape(image)}")
+    if prev.shape != cur.shape:
+        raise InputError(f"still_in_image_map: prev and cur differ in size, {prev.shape} and "
+                         f"{cur.shape}")
+    h, w = cur.shape
+    warped = warp_image(prev, matrix, (w, h), cv2.INTER_LINEAR, cv2.BORDER_REPLICATE)
+    k = (int(window), int(window))
+    r_cam = cv2.blur(cv2.absdiff(cur, warped), k).astype(np.float32)
+    r_id = cv2.blur(cv2.absdiff(cur, prev), k).astype(np.float32)
+    # The 4 gray levels are a noise floor: on flat areas both differences are a few levels of
+    # noise, and their ratio alone would swing from -1 to 1.
+    s = (r_cam - r_id) / (r_cam + r_id + np.float32(4.0))
+    # The soft step 1 / (1 + exp(-(s - centre) / width)), in place.
+    s -= np.float32(centre)
+    s *= np.float32(-1.0 / width)
+    np.exp(np.clip(s, -60.0, 60.0), out=s)
+    s += np.float32(1.0)
+    return np.reciprocal(s, out=s)
+
+
+def flow_violation_map(
+    points: np.ndarray,
+    disp: np.ndarray,
+    matrix: np.ndarray,
+    *,
+    weights: np.ndarray,
+    shape: tuple,
+    threshold: float = 1.5,
+    cell: int = 8,
+    radius: int = 1,
+    noise_scale: float = 0.0,
+) -> np.ndarray:
+    """Where local motion disagrees with the camera's.
+
+    Parameters
+    ----------
+    points : (N, 2) float
+        Positions ``(x, y)`` in the *previous* frame.
+    disp : (N, 2) float
+        Their measured displacements to the current frame.
+    matrix : (3, 3) float64
+        The camera motion (previous -> current).
+    weights : (N,) float
+        Reliability of each measurement (0 = ignore); required (``np.ones(N)`` weighs all
+        vectors alike).
+    shape : (H, W)
+        Size of the map, which is in *current*-frame coordinates (points are moved by ``disp``).
+    threshold : float
+        Disagreement (px) at which a vector counts half as violating (soft step, width 0.5 px).
+    cell : int
+        Votes are pooled in ``cell`` x ``cell`` cells ...
+    radius : int
+        ... and each cell also sees its neighbours within this many cells.
+    noise_scale : float
+        When > 0, the threshold is at least this many robust standard deviations of the
+        disagreement (``1.4826 * median``, dominated by the background's vectors): noisy
+        vectors (blurred footage) need a larger disagreement to count as motion.
+
+    Returns
+    -------
+    (H, W) float32 in [0, 1]: weighted fraction of the local vectors that violate; 0.5 (no
+    opinion) where no vector reports.
+
+    Raises
+    ------
+    InputError
+        ``points`` and ``disp`` not both ``(N, 2)``, ``weights`` not ``(N,)``, or ``matrix``
+        not ``(3, 3)``.
+    """
+    if weights is None:
+        raise InputError("flow_violation_map needs weights, one per vector (np.ones(N) weighs "
+                         "them all alike)")
+    ps, ds, ws = np.shape(points), np.shape(disp), np.shape(weights)
+    if len(ps) != 2 or ps[1] != 2 or ds != ps or ws != ps[:1]:
+        raise InputError(f"flow_violation_map needs points and disp of shape (N, 2) and weights "
+                         f"of shape (N,), not {ps}, {ds} and {ws}")
+    h, w = int(shape[0]), int(shape[1])
+    if len(points) == 0:
+        return np.full((h, w), 0.5, np.float32)
+    pts = np.asarray(points, np.float64)
+    d = np.asarray(disp, np.float64)
+    predicted = apply_homography(matrix, pts) - pts
+    err = np.hypot(*(d - predicted).T)
+    wt = np.asarray(weights, np.float64)
+    ok = (wt > 0) & np.isfinite(err)
+    if noise_scale > 0 and ok.any():
+        threshold = max(threshold, noise_scale * 1.4826 * float(np.median(err[ok])))
+    cur = pts + d
+    gw, gh = (w + cell - 1) // cell, (h + cell - 1) // cell
+    gx = np.clip((cur[:, 0] // cell).astype(np.intp), 0, gw - 1)
+    gy = np.clip((cur[:, 1] // cell).astype(np.intp), 0, gh - 1)
+    # Soft step; the clip keeps exp() finite for wild vectors (err of thousands of px).
+    viol = 1.0 / (1.0 + np.exp(-np.clip((err - threshold) / 0.25, -60.0, 60.0)))
+    cells = gy[ok] * gw + gx[ok]
+    num = np.bincount(cells, (wt * viol)[ok], minlength=gh * gw).reshape(gh, gw).astype(np.float32)
+    den = np.bincount(cells, wt[ok], minlength=gh * gw).reshape(gh, gw).astype(np.float32)
+    if radius > 0:
+        k = (2 * radius + 1, 2 * radius + 1)
+        num = cv2.boxFilter(num, -1, k, normalize=False, borderType=cv2.BORDER_CONSTANT)
+        den = cv2.boxFilter(den, -1, k, normalize=False, borderType=cv2.BORDER_CONSTANT)
+    frac = np.where(den > 1e-6, num / np.maximum(den, 1e-6), 0.5).astype(np.float32)
+    up = cv2.resize(frac, (gw * cell, gh * cell), interpolation=cv2.INTER_LINEAR)
+    return np.ascontiguousarray(up[:h, :w])
+
+
+def clean_mask(mask: np.ndarray, *, min_area: int = 30, close: int = 5,
+               fill_holes: int = 0) -> np.ndarray:
+    """Tidy a binary mask: 3x3 opening, ``close`` x ``close`` closing, drop small blobs, fill holes.
+
+    Parameters
+    ----------
+    mask : (H, W) bool or uint8
+    min_area : int
+        Connected components (8-connected) smaller than this many pixels are removed.
+    close : int
+        Side of the closing kernel (0 or 1 = no closing).
+    fill_holes : int
+        Background regions (4-connected) enclosed by foreground and not touching the frame's
+        border, of at most this many pixels, become foreground (0 = none). The inside of a
+        uniformly coloured object matches the background it covered, once the camera moves
+        the model by less than the object's size, so only its outline differs.
+
+    Returns
+    -------
+    (H, W) uint8, 0/255
+
+    Raises
+    ------
+    InputError
+        ``mask`` is not (H, W) (or (H, W, 1)).
+    """
+    mask = np.asarray(mask)
+    if mask.ndim == 3 and mask.shape[2] == 1:
+        mask = mask[:, :, 0]
+    elif mask.ndim != 2:
+        raise InputError(f"a mask must be (H, W), one value per pixel, not shape {mask.shape}")
+    # Work on 0/1 (a bool mask is reinterpreted, not converted) and scale to 0/255 once.
+    m = mask.view(np.uint8) if mask.dtype == bool else (mask > 0).view(np.uint8)
+    m = cv2.morphologyEx(m, cv2.MORPH_OPEN, _kernel(cv2.MORPH_RECT, 3))
+    if close > 1:
+        m = cv2.morphologyEx(m, cv2.MORPH_CLOSE, _kernel(cv2.MORPH_ELLIPSE, close))
+    if min_area > 1 and cv2.countNonZero(m):
+        n, labels, stats, _ = cv2.connectedComponentsWithStats(m, connectivity=8)
+        small = stats[:, cv2.CC_STAT_AREA] < min_area
+        small[0] = False
+        if small.any():
+            m[small[labels]] = 0
+    if fill_holes > 0 and cv2.countNonZero(m):
+        _fill_holes(m, fill_holes)
+    m *= 255
+    return m
+
+
+def _fill_holes(m: np.ndarray, max_area: int) -> None:
+    """Set to 1, in place, the 0-regions of the 0/1 ``m`` ((H, W) uint8) that do not reach the
+    border (4-connected), each of at most ``max_area`` pixels."""
+    # Flood the background from a one-pixel frame around the image: what stays 0 is enclosed.
+    # (Three times cheaper than labelling the background, which only the rare case of more
+    # enclosed pixels than max_area in total needs.)
+    flooded = cv2.copyMakeBorder(m, 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=0)
+    cv2.floodFill(flooded, None, (0, 0), 1)
+    holes = 1 - flooded[1:-1, 1:-1]
+    total = cv2.countNonZero(holes)
+    if total == 0:
+        return
+    if total > max_area:
+        _, labels, stats, _ = cv2.connectedComponentsWithStats(holes, connectivity=4)
+        small = stats[:, cv2.CC_STAT_AREA] <= max_area
+        small[0] = False  # label 0: everything that is not a hole
+        holes = small[labels].view(np.uint8)
+    np.bitwise_or(m, holes, out=m)
+
+
+_KERNELS: dict = {}
+
+
+def _kernel(shape: int, size: int) -> np.ndarray:
+    """A cached structuring element."""
+    key = (shape, size)
+    if key not in _KERNELS:
+        _KERNELS[key] = cv2.getStructuringElement(shape, (size, size))
+    return _KERNELS[key]
+
+
+def fuse_masks(
+    bg_score: np.ndarray,
+    violation: Optional[np.ndarray] = None,
+    *,
+    flow_boost: float = 0.0,
+    flow_damp: float = 0.0,
+    threshold: float = 1.0,
+    min_area: int = 30,
+    close: int = 5,
+    fill_holes: int = 0,
+) -> np.ndarray:
+    """Fuse background difference and flow violation into a clean 0/255 mask.
+
+    Parameters
+    ----------
+    bg_score : (H, W) float32
+        :meth:`CompensatedBackground.score` (1 = at the background decision threshold).
+    violation : (H, W) float32 in [0, 1], optional
+        :func:`flow_violation_map` (0.5 = no opinion).
+    flow_boost : float
+        Where the local motion violates the camera's, the score is multiplied by up to
+        ``1 + flow_boost`` (at ``violation == 1``).
+    flow_damp : float
+        Where it agrees, by down to ``1 - flow_damp`` (at ``violation == 0``): a difference
+        the motion explains (a ghost, a misregistered edge) counts less. Both 0 = background
+        model only.
+    threshold : float
+        Foreground where the fused score exceeds this.
+    min_area, close, fill_holes : see :func:`clean_mask`.
+
+    Returns
+    -------
+    (H, W) uint8, 0/255
+
+    Raises
+    ------
+    InputError
+        ``violation`` is not of ``bg_score``'s shape, or ``bg_score`` is not (H, W).
+    """
+    if violation is not None and np.shape(violation) != np.shape(bg_score):
+        raise InputError(f"the flow violation map has shape {np.shape(violation)}, the "
+                         f"background score {np.shape(bg_score)}; they must be of one size")
+    score = bg_score
+    if violation is not None and (flow_boost != 0.0 or flow_damp != 0.0):
+        # gain = 1 + boost * max(c, 0) + damp * min(c, 0), c = 2 violation - 1, clipped at 0.
+        c = np.asarray(violation, np.float32) * np.float32(2.0)
+        c -= np.float32(1.0)
+        gain = c * np.where(c > 0, np.float32(flow_boost), np.float32(flow_damp))
+        gain += np.float32(1.0)
+        np.maximum(gain, np.float32(0.0), out=gain)
+        gain *= bg_score
+        score = gain
+    return clean_mask(score > threshold, min_area=min_area, close=close, fill_holes=fill_holes)

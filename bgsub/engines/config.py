@@ -1,0 +1,128 @@
+"""Settings of the moving-camera engine's own stages: the camera motion
+(:class:`CameraConfig`) and the engine around the stages (:class:`EngineConfig`).
+
+With the background model's (:class:`~bgsub.background.compensated.BackgroundConfig`), the
+fusion's (:class:`~bgsub.background.fusion.FusionConfig`) and the front end's settings they make
+an engine's parameters: :func:`engine_params` generates its ``Param`` table from their fields,
+:func:`stage_configs` builds them back from parameter values.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any, Dict, Mapping
+
+from bgsub.background.compensated import BackgroundConfig
+from bgsub.background.fusion import FusionConfig
+from bgsub.engines.base import LEARNING_RATE, Param
+from bgsub.errors import InputError
+from bgsub.motion.global_motion import MODELS
+from bgsub.settings import check_settings, config_params, setting
+
+__all__ = ["MIN_WORK_WIDTH", "CameraConfig", "EngineConfig", "STAGES", "engine_params",
+           "stage_configs"]
+
+# The narrowest working frame: a few 13x13 patches across, so a motion can be read at all.
+# Resizing to ``work_width`` never makes the short side smaller than this either.
+MIN_WORK_WIDTH = 32
+
+
+@dataclass(frozen=True)
+class CameraConfig:
+    """The engine's camera-motion stage: the RANSAC fit to the front end's vectors (as
+    :class:`bgsub.motion.global_motion.CameraMotionConfig`), which fits it refuses and which
+    motion it holds back."""
+
+    motion_model: str = setting("homography", "camera motion model fitted by RANSAC",
+                                choices=MODELS)
+    ransac_threshold: float = setting(1.5, "RANSAC inlier distance in working-size pixels",
+                                      above=0)
+    min_extent: float = setting(0.33, "a camera motion must be seen across at least this "
+                                      "fraction of the frame's width or height; one seen only "
+                                      "on a smaller region (a textured object over a blank "
+                                      "background) is taken as the object's, and the camera as "
+                                      "still (0 = off)", low=0, high=1)
+    still_below: float = setting(0.25, "camera motion that moves no frame corner by more than "
+                                       "this (working px) is held back and added to the next "
+                                       "frame's: a still camera's sub-pixel reading noise "
+                                       "would resample (blur) the model every frame (0 = warp "
+                                       "every frame)", low=0)
+
+    def __post_init__(self) -> None:
+        check_settings(self)
+
+
+@dataclass(frozen=True)
+class EngineConfig:
+    """The engine around its stages: frame size, threads, the frames it does not process
+    normally (blank, scene cut), the still-camera switch and the default learning rate."""
+
+    work_width: int = setting(320, "process frames resized to this width (0 = input size, else "
+                                   f"at least {MIN_WORK_WIDTH}), but never to a height below "
+                                   f"{MIN_WORK_WIDTH}; the mask is returned at the input size",
+                              low=0)
+    threads: int = setting(1, "BLAS and OpenCV worker threads while a frame is processed (0 = "
+                              "as configured; more threads are slower for these small frames)",
+                           low=0)
+    overlap: int = setting(1, "1 = update the background and prepare the frame for the next "
+                              "pair in a second thread while the motion is measured (same "
+                              "masks, faster on 2 or more cores); 0 = one thread", low=0, high=1)
+    min_contrast: float = setting(4.0, "frames whose gray standard deviation is below this are "
+                                       "blank or textureless: empty mask, model kept", low=0)
+    scene_cut: float = setting(0.5, "restart the model when more than this fraction of the "
+                                    "pixels with history differ from it ...", low=0, high=1)
+    cut_support: float = setting(0.35, "... while fewer than this fraction of the motion "
+                                       "vectors agree with the fitted motion (or more than 80 % "
+                                       "differ)", low=0, high=1)
+    still_model: float = setting(0.15, "take the camera as still, and use a never-warped sample "
+                                       "background model (water, foam, leaves), while that "
+                                       "model calls less than this fraction of the frame "
+                                       "foreground ... (0 = off)", low=0, high=1)
+    still_snr: float = setting(4.0, "... and the fitted camera motion is less than this many "
+                                    "times the scatter of the motion vectors about it (no "
+                                    "rigid motion stands out)", low=0)
+    still_window: int = setting(9, "... both as medians over this many frames", low=1)
+    learning_rate: float = setting(LEARNING_RATE.default, LEARNING_RATE.help,
+                                   high=LEARNING_RATE.high)
+
+    def __post_init__(self) -> None:
+        check_settings(self)
+        if 0 < self.work_width < MIN_WORK_WIDTH:
+            raise InputError(f"parameter 'work_width' must be 0 (the input's width) or at "
+                             f"least {MIN_WORK_WIDTH}, not {self.work_width!r}")
+
+
+#: The engine's stage settings, in the order of its parameter table.
+STAGES = (EngineConfig, CameraConfig, BackgroundConfig, FusionConfig)
+
+
+def engine_params(front_params: Mapping[str, Param],
+                  stage_defaults: Mapping[str, Any]) -> Dict[str, Param]:
+    """The ``Param`` table of an engine: the front end's ``front_params``, then every stage
+    setting, with ``stage_defaults`` (a front end's) replacing some defaults."""
+    table = dict(front_params)
+    for stage in STAGES:
+        names = [f.name for f in dataclasses.fields(stage)]
+        clash = set(names) & set(table)
+        if clash:
+            raise ValueError(f"{stage.__name__} and the front end both have {sorted(clash)}")
+        table.update(config_params(stage, **{k: v for k, v in stage_defaults.items()
+                                             if k in names}))
+    unknown = set(stage_defaults) - set(table)
+    if unknown:
+        raise ValueError(f"stage_defaults names no stage setting: {sorted(unknown)}")
+    return table
+
+
+def stage_configs(values: Mapping[str, Any],
+                  stage_defaults: Mapping[str, Any] = {}) -> Dict[type, Any]:
+    """``{stage type: its settings}`` from parameter ``values`` (unnamed fields take
+    ``stage_defaults``, then the stage's own default); names no stage has are ignored."""
+    out = {}
+    for stage in STAGES:
+        names = {f.name for f in dataclasses.fields(stage)}
+        chosen = {k: v for k, v in stage_defaults.items() if k in names}
+        chosen.update({k: v for k, v in values.items() if k in names})
+        out[stage] = stage(**chosen)
+    return out

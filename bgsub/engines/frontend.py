@@ -1,0 +1,154 @@
+"""The motion front end of the moving-camera engine: what it must provide, what it may.
+
+A front end measures local motion between consecutive frames and has the camera's motion fitted
+to it; the engine (:class:`bgsub.engines.moving.MovingCameraEngine`) does everything else. It
+must provide
+
+* :meth:`MotionFrontEnd.measure` ``(prev, cur, *, prior, fit) -> MotionResult``: the motion
+  from the previous frame to the current one, each as :meth:`~MotionFrontEnd.frame_data` made
+  it; ``fit`` (a :class:`CameraFit`) fits the camera motion to vectors;
+
+and may provide
+
+* :meth:`~MotionFrontEnd.frame_data` ``(gray)``: what it keeps of a frame (default: the gray
+  image itself), cheap;
+* :meth:`~MotionFrontEnd.prepare` ``(data)``: work on a frame that only the *next* pair needs,
+  done in the engine's second thread while this pair is measured (``overlap=1``);
+* :meth:`~MotionFrontEnd.check_size` ``(gray)``: refuse, on the first frame, a stream it cannot
+  read at all;
+* :meth:`~MotionFrontEnd.flow_colour` ``(shape)``: a picture of the last measured motion for
+  ``debug_image``.
+
+Its settings are a frozen dataclass (``config_type``, fields declared with
+:func:`bgsub.settings.setting`), from which its engine's parameters are generated; it may replace
+defaults of the engine's stages (``stage_defaults``). :func:`bgsub.engines.moving.register_frontend`
+registers the engine that uses it::
+
+    class MyFrontEnd(MotionFrontEnd):
+        name, description = "mine", "moving camera: my motion vectors"
+
+        def measure(self, prev, cur, *, prior, fit):
+            points, disp = my_vectors(prev, cur)            # (N, 2) float32 each
+            weights = np.ones(len(points), np.float32)
+            return MotionResult(points, disp, weights, fit(points, disp, weights, cur.shape))
+
+    register_frontend(MyFrontEnd)
+    engine = bgsub.create_engine("mine")
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from typing import Any, ClassVar, Dict, Mapping, Optional
+
+import numpy as np
+
+from bgsub.engines.base import Param
+from bgsub.motion.global_motion import CameraMotionConfig, GlobalMotion
+from bgsub.settings import config_params
+
+__all__ = ["MotionResult", "MotionFrontEnd", "CameraFit", "NO_MOTION"]
+
+
+@dataclass
+class MotionResult:
+    """What a motion front end found between the previous and the current frame.
+
+    Attributes
+    ----------
+    points : (N, 2) float32
+        Positions in the previous frame (working size).
+    disp : (N, 2) float32
+        Their measured displacements.
+    weights : (N,) float32
+        Reliability (0 = unusable).
+    motion : GlobalMotion
+        The camera motion fitted to them (:class:`CameraFit`).
+    violation_weights : (N,) float32, optional
+        Reliability of each vector as evidence for the flow-violation map, when it differs
+        from ``weights`` (the gated RBM's out-of-range readings are evidence of motion, but not
+        usable by RANSAC).
+    """
+
+    points: np.ndarray
+    disp: np.ndarray
+    weights: np.ndarray
+    motion: GlobalMotion
+    violation_weights: Optional[np.ndarray] = None
+
+    @property
+    def evidence_weights(self) -> np.ndarray:
+        """``(N,) float32``: ``violation_weights`` when given, else ``weights``."""
+        return self.weights if self.violation_weights is None else self.violation_weights
+
+
+_NONE = np.zeros((0, 2), np.float32)
+#: The motion of a repeated frame: none, measured from no correspondences.
+NO_MOTION = MotionResult(_NONE, _NONE, np.zeros(0, np.float32), GlobalMotion.identity(0))
+
+
+class CameraFit:
+    """The camera-motion fit a front end applies to its vectors: RANSAC of ``motion_model``
+    with inlier distance ``threshold`` (working-size px), :class:`CameraMotionConfig`."""
+
+    def __init__(self, *, motion_model: str, threshold: float) -> None:
+        self.config = CameraMotionConfig(motion_model=motion_model, threshold=threshold)
+
+    def __call__(self, points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
+                 shape: tuple) -> GlobalMotion:
+        """The motion of ``(N, 2)`` ``points`` moved by ``disp``, with ``(N,)`` ``weights``,
+        in an ``(h, w)`` frame."""
+        return self.config.fit(points, points + disp, weights=weights,
+                               frame_size=(shape[1], shape[0]))
+
+
+class MotionFrontEnd(ABC):
+    """Base class of the motion front ends (see the module docstring for the contract)."""
+
+    #: The engine's registered name and its one-line description (``bgsub methods``).
+    name: ClassVar[str] = ""
+    description: ClassVar[str] = ""
+    #: The front end's settings: a frozen dataclass of :func:`~bgsub.settings.setting` fields.
+    config_type: ClassVar[Optional[type]] = None
+    #: Defaults of the engine's stage settings (by field name) that this front end replaces.
+    stage_defaults: ClassVar[Mapping[str, Any]] = {}
+
+    def __init__(self, config: Any = None) -> None:
+        if config is None and self.config_type is not None:
+            config = self.config_type()
+        self.config = config
+
+    @classmethod
+    def params(cls) -> Dict[str, Param]:
+        """The engine parameters of the front end's settings (generated from ``config_type``)."""
+        return config_params(cls.config_type) if cls.config_type is not None else {}
+
+    @classmethod
+    def from_params(cls, **values: Any) -> "MotionFrontEnd":
+        """The front end with the settings :meth:`params` names (``bgsub run --param``)."""
+        return cls(cls.config_type(**values) if cls.config_type is not None else None)
+
+    @abstractmethod
+    def measure(self, prev: Any, cur: Any, *, prior: Optional[np.ndarray],
+                fit: CameraFit) -> MotionResult:
+        """The motion from ``prev`` to ``cur`` (as :meth:`frame_data` made them); ``prior``
+        is the camera's last good motion ((3, 3) float64, working size) or None."""
+
+    def frame_data(self, gray: np.ndarray) -> Any:
+        """What the front end keeps of a frame (``gray``: (h, w) uint8, working size, not
+        modified later); cheap: the expensive part goes to :meth:`prepare`."""
+        return gray
+
+    def prepare(self, data: Any) -> None:
+        """Work on a frame that only the *next* pair needs (it is that pair's first frame),
+        done in place on ``data`` while this frame's motion is measured."""
+
+    def check_size(self, gray: np.ndarray) -> None:
+        """Raise :class:`~bgsub.errors.InputError` when frames of ``gray``'s (working) size
+        cannot be read at all; called on the first frame, before any mask is returned."""
+
+    def flow_colour(self, shape: tuple) -> Optional[np.ndarray]:
+        """A colour-coded ``(h, w, 3) uint8`` picture of the last measured local motion, or
+        None."""
+        return None

@@ -1,0 +1,231 @@
+"""The gated RBM's motion front end (the ``grbm`` engine, the paper's method): patch
+displacements read off the factored 3-way RBM coarse to fine
+(:func:`bgsub.motion.flowfield.estimate_flow`), re-read coarser where the final level is poorly
+supported (motion blur) and from scratch where the previous motion misled it."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any, Dict, NamedTuple, Optional
+
+import numpy as np
+
+from bgsub.engines.base import Param
+from bgsub.engines.frontend import CameraFit, MotionFrontEnd, MotionResult
+from bgsub.errors import InputError
+from bgsub.io.flowio import flow_to_color
+from bgsub.motion.config import FlowConfig
+from bgsub.motion.flowfield import (FlowEstimate, FramePyramid, dense_from_patches,
+                                    estimate_flow, prepare_first_frame)
+from bgsub.motion.global_motion import GlobalMotion
+from bgsub.settings import check_settings, config_params, setting
+
+__all__ = ["GrbmConfig", "GrbmFrontEnd", "GRBM_TUNED", "FLOW_PARAMS", "Reading"]
+
+# The gated RBM's flow-violation evidence is dense but noisier than tracked corners: weakly
+# textured object patches read the camera's motion and would damp true objects, so its engine
+# leans on violation evidence to boost rather than to damp. How noisy its vectors are depends
+# on the footage (sharp BMS-26 vs blurred CDnet traffic), so a violation is a disagreement of
+# 0.75 px or 4 robust standard deviations of the frame's disagreements, whichever is larger.
+# With the coarsest level read to convergence its vectors support a homography at a tighter
+# 1 px RANSAC threshold. Tuned on the real set (docs/BENCHMARKS.md).
+GRBM_TUNED = dict(ransac_threshold=1.0, flow_boost=1.5, flow_damp=0.2, violation_threshold=0.75,
+                  violation_noise=4.0)
+
+#: The :class:`FlowConfig` settings that are parameters of the ``grbm`` engine.
+FLOW_PARAMS = ("stride", "levels", "max_motion", "min_texture", "max_patches", "iterations",
+               "finest", "refine_stride", "coarse_iterations", "converged", "texture_scale",
+               "search", "search_below", "start_tolerance", "start_model")
+
+
+@dataclass(frozen=True)
+class GrbmConfig:
+    """The gated-RBM front end's own settings (the readout's are a :class:`FlowConfig`)."""
+
+    model: str = setting("natural", "gated RBM: a shipped model name or an .npz path (from "
+                                    "Python also a GatedRBM, or any object with its "
+                                    "patch_motion contract)")
+    contrast_floor: float = setting(0.005, "patch pairs with a lower RMS contrast (gray in "
+                                           "[0, 1]) are flat and not read (0 = the model's "
+                                           "own, 0.02 for the shipped models)", low=0)
+    coarser_below: float = setting(0.5, "when fewer than this fraction of the final readout's "
+                                        "patches agree with the fitted motion (motion blur), "
+                                        "also read up to two levels coarser and keep the "
+                                        "best-supported (0 = never)", low=0)
+    coarser_stride: int = setting(16, "patch grid step (working-size pixels) of those coarser "
+                                      "readouts (0 = stride): 2 x stride is as dense in a "
+                                      "half-size image as stride in the full one", low=0)
+    prior_levels: int = setting(0, "pyramid levels used when the previous frame's motion "
+                                    "predicts this one (0 = always the full pyramid)", low=0)
+    retry_below: float = setting(0.6, "with prior_levels > 0: when fewer than this fraction of "
+                                      "the patches agree with the motion found from the "
+                                      "previous frame's, also search with the full pyramid",
+                                 low=0)
+
+    def __post_init__(self) -> None:
+        check_settings(self)
+
+
+class Reading(NamedTuple):
+    """One readout: the patch motion, the camera motion fitted to it and the fraction of its
+    usable patches that agree with that motion (its support, 0 without a fit)."""
+
+    flow: FlowEstimate
+    motion: GlobalMotion
+    support: float
+
+
+class GrbmFrontEnd(MotionFrontEnd):
+    """Patch motion from the gated RBM, coarse to fine, over :class:`FramePyramid` frames.
+
+    ``config`` holds the front end's own settings, ``flow`` the readout's (its ``levels``,
+    ``finest`` and ``stride`` are varied per readout; ``warn_range`` is off: ``max_motion`` only
+    plans the pyramid here, and beyond its reach the engine reads from the previous frame's
+    motion). :attr:`last_flow` is the readout behind the last :meth:`measure`.
+    """
+
+    name = "grbm"
+    description = ("moving camera: gated-RBM patch motion (coarse to fine) + RANSAC camera "
+                   "motion + compensated background model (the paper's method)")
+    config_type = GrbmConfig
+    stage_defaults = GRBM_TUNED
+
+    def __init__(self, config: Optional[GrbmConfig] = None, *,
+                 flow: Optional[FlowConfig] = None) -> None:
+        super().__init__(config)
+        self.flow = dataclasses.replace(flow or FlowConfig(), warn_range=False)
+        self.model = _load(self.config.model, self.config.contrast_floor)
+        self.last_flow: Optional[FlowEstimate] = None
+        self._configs: Dict[tuple, FlowConfig] = {}
+
+    @classmethod
+    def params(cls) -> Dict[str, Param]:
+        return {**config_params(GrbmConfig), **config_params(FlowConfig, FLOW_PARAMS)}
+
+    @classmethod
+    def from_params(cls, **values: Any) -> "GrbmFrontEnd":
+        own = {f.name for f in dataclasses.fields(GrbmConfig)}
+        return cls(GrbmConfig(**{k: v for k, v in values.items() if k in own}),
+                   flow=FlowConfig(**{k: v for k, v in values.items() if k not in own}))
+
+    def frame_data(self, gray: np.ndarray) -> FramePyramid:
+        return FramePyramid(gray)
+
+    def prepare(self, data: FramePyramid) -> None:
+        if not hasattr(self.model, "patch_motion"):
+            prepare_first_frame(data, self._flow_config(self.flow.levels, self.flow.finest),
+                                model=self.model)
+
+    def check_size(self, gray: np.ndarray) -> None:
+        patch = int(getattr(self.model, "patch_size", 0) or 0)
+        if min(gray.shape) < patch:
+            # Every frame would fall back to "no correspondences": a model for other footage.
+            h, w = gray.shape
+            raise InputError(f"frames of {w}x{h} (working size) are smaller than the model's "
+                             f"{patch}x{patch} patches")
+
+    def flow_colour(self, shape: tuple) -> Optional[np.ndarray]:
+        if self.last_flow is None:
+            return None
+        dense = dense_from_patches(self.last_flow, shape=shape,
+                                   patch_size=int(self.model.patch_size))
+        return flow_to_color(dense, max_magnitude=max(4.0, self.flow.max_motion / 4))
+
+    def read(self, prev: FramePyramid, cur: FramePyramid, prior: Optional[np.ndarray], *,
+             finest: int, fit: CameraFit, stride: Optional[int] = None) -> Reading:
+        """A readout with its final level ``finest``, on a grid of ``stride`` working-size
+        pixels (default ``flow.stride``), started from ``prior`` ((3, 3) or None)."""
+        levels = self.flow.levels
+        if prior is not None and levels == 0:
+            # The previous frame's motion predicts this one to within a few pixels: two levels
+            # cover that; a camera that changes course fails the support test and is retried
+            # with the full pyramid.
+            levels = self.config.prior_levels
+        flow = estimate_flow(prev, cur, self._flow_config(levels, finest, stride),
+                             model=self.model, prior=prior)
+        motion = fit(flow.centres, flow.disp, flow.weights, cur.shape)
+        used = max(int(np.count_nonzero(flow.weights > 0)), 1)
+        return Reading(flow, motion, motion.n_inliers / used if motion.ok else 0.0)
+
+    def measure(self, prev: FramePyramid, cur: FramePyramid, *, prior: Optional[np.ndarray],
+                fit: CameraFit) -> MotionResult:
+        best = self._coarser_if_blurred(prev, cur, prior, fit)
+        self.last_flow = best.flow
+        first = _result(best)
+        reduced = self.flow.levels == 0 and self.config.prior_levels > 0
+        if (prior is None or not reduced
+                or (best.motion.ok and best.support >= self.config.retry_below)):
+            return first
+        # The prior may be wrong (the camera changed course): also try from scratch and keep
+        # the reading more patches agree with.
+        retry = self.read(prev, cur, None, finest=self.flow.finest, fit=fit)
+        second = _result(retry)
+        if retry.motion.ok and (not best.motion.ok
+                                or retry.motion.n_inliers > best.motion.n_inliers):
+            self.last_flow = retry.flow
+            return second
+        return first
+
+    def _coarser_if_blurred(self, prev: FramePyramid, cur: FramePyramid,
+                            prior: Optional[np.ndarray], fit: CameraFit) -> Reading:
+        """The readout at the final level, or, when few of its patches agree with its fit, the
+        best supported of it and the readouts one and two levels coarser.
+
+        Low support at the final level means the model cannot read it (motion blur, heavy
+        compression) while a reduced image, where the blur is halved, reads consistently. The
+        re-reads use a sparser grid (``coarser_stride``): as dense in the half-size image's own
+        pixels as the first readout's in the full one, which also reads better there and costs
+        a quarter.
+        """
+        finest = self.flow.finest
+        best = self.read(prev, cur, prior, finest=finest, fit=fit)
+        level = finest
+        while (best.support < self.config.coarser_below and level < finest + 2
+               and level + 1 < best.flow.levels):
+            level += 1
+            coarser = self.read(prev, cur, prior, finest=level, fit=fit,
+                                stride=self.config.coarser_stride or self.flow.stride)
+            if coarser.motion.ok and (coarser.support > best.support or not best.motion.ok):
+                best = coarser
+        return best
+
+    def _flow_config(self, levels: int, finest: int, stride: Optional[int] = None) -> FlowConfig:
+        key = (levels, finest, stride)
+        if key not in self._configs:
+            self._configs[key] = dataclasses.replace(
+                self.flow, levels=levels, finest=finest,
+                stride=self.flow.stride if stride is None else stride)
+        return self._configs[key]
+
+
+def _result(reading: Reading) -> MotionResult:
+    """The engine's view of a readout; violation evidence also counts textured patches whose
+    residual is beyond the model's range (they moved relative to the camera by more than it
+    can see)."""
+    flow = reading.flow
+    evidence = flow.weights.copy()
+    if flow.beyond is not None:
+        evidence[flow.beyond] = flow.texture[flow.beyond]
+    return MotionResult(flow.centres, flow.disp, flow.weights, reading.motion, evidence)
+
+
+def _load(model: Any, contrast_floor: float) -> Any:
+    """The patch-motion model: a name or path loaded, a GatedRBM or any object with the
+    ``patch_motion`` contract (:func:`bgsub.motion.flowfield.patch_motion`) as it is. A
+    ``contrast_floor`` other than a contrast-normalised model's own gives a copy with its own
+    readout caches (the model object may be shared: a caller's)."""
+    from bgsub.model.rbm import load_model
+
+    model = model if hasattr(model, "patch_motion") else load_model(model)
+    if (contrast_floor > 0 and getattr(model, "normalization", None) == "contrast"
+            and contrast_floor != model.contrast_floor):
+        model = dataclasses.replace(model, contrast_floor=float(contrast_floor), _cache={})
+    if not hasattr(model, "patch_motion"):
+        # Per-model constants of the readout, once here rather than in the first frame.
+        from bgsub.model.readout import precompute
+        from bgsub.motion.flowfield import model_range
+
+        precompute(model, max_disp=model_range(model))
+    return model
+

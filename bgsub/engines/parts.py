@@ -1,0 +1,326 @@
+"""The moving-camera engine's special behaviours, each a small part with its own state:
+
+* :class:`SmallRegionRule`: a fitted motion seen on only a small region is an object's;
+* :class:`MotionHoldBack`: motion too small to warp the model by is added to the next frame's;
+* :class:`FrozenModelRegistration`: a frozen model (``learning_rate=0``) is registered to the
+  frame, so the errors of the frame-to-frame motions do not add up;
+* :class:`SceneCut`: a new shot restarts the model;
+* :class:`StillCameraSwitch`: while the camera is still, a never-warped sample model replaces
+  the compensated one in the fusion (water and foam defeat a mean-and-variance model, and their
+  drift would be taken for a pan).
+"""
+
+from __future__ import annotations
+
+import collections
+import dataclasses
+from typing import Optional
+
+import cv2
+import numpy as np
+
+from bgsub.background.compensated import CompensatedBackground
+from bgsub.background.sample import SampleBackground
+from bgsub.engines.frontend import NO_MOTION, MotionResult
+from bgsub.motion.global_motion import (GlobalMotion, apply_homography, corner_distances,
+                                        fit_global_motion)
+
+__all__ = ["SMALL_REGION", "spans_frame", "SmallRegionRule", "MotionHoldBack",
+           "FrozenModelRegistration", "SceneCut", "StillCameraSwitch", "motion_snr"]
+
+
+def _translation(dx: float, dy: float) -> np.ndarray:
+    return np.array([[1.0, 0.0, dx], [0.0, 1.0, dy], [0.0, 0.0, 1.0]])
+
+
+def _shift_of(matrix: np.ndarray, shape: tuple) -> np.ndarray:
+    """The translation (3, 3) that moves the centre of an ``(H, W)`` frame as ``matrix`` does."""
+    h, w = shape[:2]
+    centre = np.array([[(w - 1) / 2.0, (h - 1) / 2.0]])
+    return _translation(*(apply_homography(matrix, centre) - centre)[0])
+
+
+def largest_corner_shift(matrix: np.ndarray, shape: tuple) -> float:
+    """How far (px) the (3, 3) ``matrix`` moves the farthest-moved corner of an ``(H, W)``
+    frame."""
+    h, w = shape[:2]
+    return float(corner_distances(matrix, np.eye(3), width=w, height=h).max())
+
+
+# ---------------------------------------------------------------------- small-region rule
+
+#: Why a fit was refused by :func:`spans_frame` (``last_status`` reads "fallback: " + this).
+SMALL_REGION = "motion seen on only a small part of the frame (an object's; camera taken as still)"
+
+
+def spans_frame(result: MotionResult, shape: tuple, min_extent: float) -> bool:
+    """Whether ``result``'s RANSAC inliers reach across at least ``min_extent`` of the frame's
+    width or of its height (``shape`` is ``(H, W)``), as a camera's motion does.
+
+    When only one compact region has texture (a textured object over sky, snow or a blank
+    wall), its motion is the only one measured, and RANSAC fits it as the camera's: the object
+    would then be the background and never found. Nothing in the frame tells a camera moving
+    over such a scene from a still camera watching the object, and a background subtractor
+    serves its user better by reporting the object. A fit with no inliers (a repeated frame's)
+    passes.
+    """
+    inl = result.motion.inliers & (result.weights > 0)
+    if not inl.any():
+        return True
+    pts = result.points[inl]
+    h, w = shape[:2]
+    span_x = float(pts[:, 0].max() - pts[:, 0].min()) / max(w - 1, 1)
+    span_y = float(pts[:, 1].max() - pts[:, 1].min()) / max(h - 1, 1)
+    return max(span_x, span_y) >= min_extent
+
+
+class SmallRegionRule:
+    """Refuses a fit whose inliers span less than ``min_extent`` of the frame (0 = never):
+    the camera is then taken as still for that frame (a previous motion may have been a
+    mixture of the object's and the blank background's readings)."""
+
+    def __init__(self, min_extent: float) -> None:
+        self.min_extent = float(min_extent)
+
+    def check(self, result: MotionResult, shape: tuple) -> tuple:
+        """``(result, refused)``: ``result`` as it is, or with its motion refused (the
+        identity, not ok, reason :data:`SMALL_REGION`) when it spans too small a region of an
+        ``(h, w)`` frame."""
+        if (self.min_extent <= 0 or not result.motion.ok
+                or spans_frame(result, shape, self.min_extent)):
+            return result, False
+        refused = GlobalMotion.identity(len(result.points), ok=False, reason=SMALL_REGION)
+        return dataclasses.replace(result, motion=refused), True
+
+
+# ---------------------------------------------------------------------- motion hold-back
+
+class MotionHoldBack:
+    """Motion that moves no frame corner by ``still_below`` px is held back and added to the
+    next frame's (0 = every motion is applied).
+
+    A still camera's readings scatter by hundredths of a pixel: warping the model by each
+    resamples (blurs) it every frame. Held back and added up instead, a slow pan (0.2 px per
+    frame at the working size) still moves the model, in steps.
+    """
+
+    def __init__(self, still_below: float) -> None:
+        self.still_below = float(still_below)
+        self.unapplied = np.eye(3)  # (3, 3): the motion held back so far
+
+    def reset(self) -> None:
+        self.unapplied = np.eye(3)
+
+    def total(self, matrix: np.ndarray) -> np.ndarray:
+        """This frame's ``matrix`` (3, 3) with what earlier frames left unapplied."""
+        return matrix @ self.unapplied
+
+    def below(self, matrix: np.ndarray, shape: tuple) -> bool:
+        """Whether ``matrix`` moves no corner of an ``(h, w)`` frame by ``still_below`` px."""
+        return self.still_below > 0 and largest_corner_shift(matrix, shape) < self.still_below
+
+    def release(self, total: np.ndarray, shape: tuple) -> np.ndarray:
+        """The motion to warp the model by: ``total`` (from :meth:`total`), or the identity
+        while it is :meth:`below` the limit (then it is kept for the next frame)."""
+        if self.below(total, shape):
+            self.unapplied = total
+            return np.eye(3)
+        self.unapplied = np.eye(3)
+        return total
+
+
+# ---------------------------------------------------------------------- frozen-model registration
+
+class FrozenModelRegistration:
+    """Registers a frozen background model (``learning_rate=0``) to the frame.
+
+    A frozen model is tied to the scene by nothing but the chain of frame-to-frame motions,
+    whose errors add up to a drift of pixels within seconds of a pan (false foreground along
+    every edge). The model is itself an image of the scene in (nearly) this frame's coordinates,
+    so the frame is registered to it: phase correlation finds the shift, then corners of the
+    model tracked into the frame (pyramidal Lucas-Kanade from that shift) and a RANSAC fit of
+    the engine's motion model to them correct the rest, rotation and zoom included. Objects in
+    the frame are the fit's outliers. When the corners give no fit (a flat or changed scene),
+    the shift alone is applied. Costs two whole-frame FFTs and a few hundred tracks a frame.
+    """
+
+    #: The largest correction (px, at any frame corner) the registration may add.
+    max_correction = 3.0
+    #: The smallest phase-correlation peak it trusts.
+    min_response = 0.05
+    #: Corner tracking: at most this many corners of the model, the Lucas-Kanade window side
+    #: and pyramid levels above the base, and the RANSAC inlier distance (px) of the fit.
+    corners, window, levels, threshold = 200, 15, 1, 1.0
+
+    def __init__(self, motion_model: str) -> None:
+        self.motion_model = motion_model
+        self._window: Optional[np.ndarray] = None  # Hanning window of the phase correlation
+
+    def register(self, matrix: np.ndarray, gray: np.ndarray, model: CompensatedBackground, *,
+                 small: bool) -> np.ndarray:
+        """``matrix`` (3, 3) followed by the motion (moving no frame corner by more than
+        ``max_correction`` px) that best registers ``model``, warped by it, to ``gray`` ((h, w)
+        uint8). A ``small`` motion (below the hold-back limit) is first reduced to its shift:
+        a frozen model must not collect the fit's sub-pixel rotation and zoom noise."""
+        if small:
+            matrix = _shift_of(matrix, gray.shape)
+        h, w = gray.shape
+        mean = model.mean
+        mean = mean[:, :, 0] if mean.shape[2] == 1 else cv2.cvtColor(mean, cv2.COLOR_BGR2GRAY)
+        warped = cv2.warpPerspective(mean, matrix, (w, h), flags=cv2.INTER_LINEAR,
+                                     borderMode=cv2.BORDER_REPLICATE)
+        # (uint8 for the tracker, taken first: phaseCorrelate windows its inputs in place.)
+        warped8 = np.clip(warped + np.float32(0.5), 0, 255).astype(np.uint8)
+        if self._window is None or self._window.shape != (h, w):
+            self._window = cv2.createHanningWindow((w, h), cv2.CV_32F)
+        (dx, dy), response = cv2.phaseCorrelate(warped, gray.astype(np.float32), self._window)
+        if response < self.min_response or np.hypot(dx, dy) > self.max_correction:
+            dx = dy = 0.0  # no clear peak (a textureless or changed scene): keep the estimate
+        seen = cv2.warpPerspective(model.age, matrix, (w, h), flags=cv2.INTER_NEAREST,
+                                   borderMode=cv2.BORDER_CONSTANT, borderValue=0) >= 1.0
+        residual = self._residual(warped8, seen, gray, (dx, dy))
+        if residual is None:
+            return _translation(dx, dy) @ matrix if (dx, dy) != (0.0, 0.0) else matrix
+        return residual @ matrix
+
+    def _residual(self, model: np.ndarray, seen: np.ndarray, gray: np.ndarray,
+                  shift: tuple) -> Optional[np.ndarray]:
+        """The motion (3, 3) from ``model`` (the model's warped gray mean, (h, w) uint8) to
+        ``gray``: corners of the model where it has a history (``seen``, (h, w) bool),
+        tracked into the frame starting from ``shift``, and the motion model fitted to them
+        by RANSAC. None when too few corners agree or the fit moves a frame corner by more
+        than ``max_correction`` px."""
+        h, w = gray.shape
+        seen = cv2.erode(seen.astype(np.uint8), np.ones((7, 7), np.uint8))
+        pts = cv2.goodFeaturesToTrack(model, maxCorners=self.corners, qualityLevel=0.01,
+                                      minDistance=8, blockSize=7, mask=seen)
+        if pts is None or len(pts) < 12:
+            return None
+        start = (pts + np.float32(shift)).astype(np.float32)
+        crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 20, 0.03)
+        found, status, _ = cv2.calcOpticalFlowPyrLK(model, gray, pts, start,
+                                                    winSize=(self.window, self.window),
+                                                    maxLevel=self.levels, criteria=crit,
+                                                    flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
+        fit = fit_global_motion(pts.reshape(-1, 2), found.reshape(-1, 2),
+                                weights=status.ravel().astype(np.float32),
+                                model=self.motion_model, threshold=self.threshold,
+                                frame_size=(w, h))
+        if not fit.ok or largest_corner_shift(fit.matrix, gray.shape) > self.max_correction:
+            return None
+        return fit.matrix
+
+    @staticmethod
+    def forget_unseen(model: CompensatedBackground, applied: np.ndarray) -> None:
+        """After a frozen ``model``'s warp by ``applied`` (3, 3): pixels that the previous
+        frame saw only in part (their source lies beyond its border, filled by replicating the
+        edge) lose their history, so that the model's update gives them this frame.
+
+        The warp interpolates the age, so a pixel half beyond the border inherits half of its
+        neighbour's: at 1 or more it would count as learnt, and a frozen model would keep the
+        replicated edge (streaks along the border the camera moves towards).
+        """
+        if model.age is None or np.array_equal(applied, np.eye(3)):
+            return
+        h, w = model.age.shape
+        inside = cv2.warpPerspective(np.ones((h, w), np.float32), applied, (w, h),
+                                     flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                                     borderValue=0)
+        model.age[inside < 0.999] = 0.0
+
+
+# ---------------------------------------------------------------------- scene cut
+
+class SceneCut:
+    """A new shot: after compensation more than ``scene_cut`` of the pixels with history still
+    differ from the model while fewer than ``cut_support`` of the motion vectors agree with the
+    fitted motion (a new shot has no consistent motion), or more than 80 % differ whatever the
+    motion says."""
+
+    def __init__(self, scene_cut: float, cut_support: float) -> None:
+        self.scene_cut = float(scene_cut)
+        self.cut_support = float(cut_support)
+
+    def is_cut(self, score: np.ndarray, young: np.ndarray, result: MotionResult) -> bool:
+        """Whether the frame starts a new shot, given the background ``score`` ((h, w)
+        float32, above 1 = differs), the pixels without history ``young`` ((h, w) bool, not
+        counted) and the frame's motion ``result`` (:data:`NO_MOTION`, a repeated frame's,
+        is no new shot)."""
+        old = max(int(np.count_nonzero(~young)), 1)
+        used = max(int(np.count_nonzero(result.weights > 0)), 1)
+        support = result.motion.n_inliers / used if result.motion.ok else 0.0
+        if result is NO_MOTION:
+            support = 1.0
+        changed = np.count_nonzero((score > 1.0) & ~young) / old
+        return (changed > self.scene_cut and support < self.cut_support) or changed > 0.8
+
+
+# ---------------------------------------------------------------------- still-camera switch
+
+def motion_snr(result: MotionResult, *, min_vectors: int = 8) -> float:
+    """How far the fitted camera motion stands out of the motion vectors' disagreement with it:
+    the median displacement it predicts at the vectors' positions over the robust standard
+    deviation (1.4826 MAD) of their residuals; 0 without a fit or with fewer than
+    ``min_vectors`` usable vectors.
+
+    A camera moves the whole background rigidly: its motion is many times the residuals
+    (panning and shaking cameras: medians 9-100 on the development data). Water or foam seen by
+    a still camera drifts coherently enough for RANSAC to fit a "motion", but its vectors
+    scatter about it by about as much (medians 0.5-2.2).
+    """
+    if not result.motion.ok:
+        return 0.0
+    usable = result.weights > 0
+    if np.count_nonzero(usable) < min_vectors:
+        return 0.0
+    pts = result.points[usable].astype(np.float64)
+    predicted = apply_homography(result.motion.matrix, pts) - pts
+    residual = np.linalg.norm(result.disp[usable] - predicted, axis=1)
+    scatter = 1.4826 * float(np.median(residual))
+    return float(np.median(np.linalg.norm(predicted, axis=1))) / max(scatter, 1e-3)
+
+
+class StillCameraSwitch:
+    """A :class:`SampleBackground` that is never warped runs beside the compensated model; the
+    camera is taken as still (:attr:`camera_still`), and that model's score used, while over
+    the last ``window`` frames (medians) it calls less than ``still_model`` of the frame
+    foreground and the fitted motion is less than ``still_snr`` times the robust scatter of the
+    motion vectors about it (:func:`motion_snr`). Both are needed: a pan makes the sample model
+    fail, and a shaking camera's motion is rigid however small."""
+
+    def __init__(self, *, still_model: float, still_snr: float, window: int) -> None:
+        self.still_model = float(still_model)
+        self.still_snr = float(still_snr)
+        self.window = max(int(window), 1)
+        self.model = SampleBackground()
+        # (fraction the sample model calls foreground, motion_snr) of the last frames.
+        self._votes: collections.deque = collections.deque(maxlen=self.window)
+        self.camera_still = False
+
+    def reset(self, frame: np.ndarray) -> None:
+        """Start over from ``frame`` (a restart of the engine's model)."""
+        self.model.reset(frame)
+        self._votes.clear()
+        self.camera_still = False
+
+    def update(self, frame: np.ndarray, learn_slowly: np.ndarray, rate: float) -> None:
+        """Learn ``frame`` (:meth:`SampleBackground.update`'s conventions)."""
+        self.model.update(frame, learn_slowly, rate)
+
+    def judge(self, frame: np.ndarray, result: MotionResult) -> Optional[np.ndarray]:
+        """Whether the camera is taken as still for ``frame`` (working size) with motion
+        ``result``: the sample model's ``(h, w) float32`` score of it if so, else None."""
+        snr = motion_snr(result)
+        snrs = [v[1] for v in self._votes] + [snr]
+        if np.median(snrs[-self.window:]) >= self.still_snr:
+            # A rigid motion: the camera moves whatever the sample model says. Not scoring it
+            # saves ~1 ms a frame; the frame counts as one the sample model does not explain.
+            self._votes.append((1.0, snr))
+            self.camera_still = False
+            return None
+        score = self.model.score(frame)
+        fraction = float(np.count_nonzero(score > 1.0)) / score.size
+        self._votes.append((fraction, snr))
+        fractions = np.median([v[0] for v in self._votes])
+        self.camera_still = bool(fractions < self.still_model)
+        return score if self.camera_still else None

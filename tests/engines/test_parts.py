@@ -1,0 +1,194 @@
+"""The moving-camera engine's named parts (bgsub.engines.parts), its second thread
+(bgsub.engines.threads) and its stage settings (bgsub.engines.config), each on its own."""
+
+import dataclasses
+import pickle
+import threading
+
+import numpy as np
+import pytest
+
+from bgsub.background.compensated import BackgroundConfig
+from bgsub.background.fusion import FusionConfig
+from bgsub.engines import get_engine_spec
+from bgsub.engines.config import STAGES, CameraConfig, EngineConfig, stage_configs
+from bgsub.engines.frontend import NO_MOTION, MotionResult
+from bgsub.engines.frontends.grbm import GRBM_TUNED
+from bgsub.engines.parts import (SMALL_REGION, MotionHoldBack, SceneCut, SmallRegionRule,
+                                 StillCameraSwitch)
+from bgsub.engines.threads import SecondThread
+from bgsub.errors import InputError
+from bgsub.motion.global_motion import GlobalMotion
+from bgsub.settings import config_params
+
+
+def _shift(dx, dy=0.0):
+    return np.array([[1.0, 0.0, dx], [0.0, 1.0, dy], [0.0, 0.0, 1.0]])
+
+
+def _result(points, matrix=None, disp=None, ok=True):
+    pts = np.asarray(points, np.float32)
+    d = np.zeros_like(pts) if disp is None else np.asarray(disp, np.float32)
+    motion = GlobalMotion(np.eye(3) if matrix is None else matrix, np.ones(len(pts), bool), ok)
+    return MotionResult(pts, d, np.ones(len(pts), np.float32), motion)
+
+
+# ------------------------------------------------------------------ small-region rule
+
+def test_a_fit_on_a_small_region_is_refused_and_one_across_the_frame_kept():
+    rule = SmallRegionRule(0.33)
+    compact = _result([[10, 10], [30, 20], [20, 40]])
+    refused, was = rule.check(compact, (100, 200))
+    assert was and not refused.motion.ok and refused.motion.reason == SMALL_REGION
+    across = _result([[0, 10], [150, 20]])
+    kept, was = rule.check(across, (100, 200))
+    assert not was and kept is across
+
+
+def test_the_small_region_rule_at_zero_never_refuses():
+    compact = _result([[10, 10], [12, 12]])
+    assert SmallRegionRule(0.0).check(compact, (100, 200)) == (compact, False)
+
+
+# ------------------------------------------------------------------ motion hold-back
+
+def test_small_motions_are_held_back_until_their_total_reaches_the_limit():
+    hold = MotionHoldBack(0.25)
+    first = hold.release(hold.total(_shift(0.15)), (100, 100))
+    np.testing.assert_array_equal(first, np.eye(3))
+    second = hold.release(hold.total(_shift(0.15)), (100, 100))
+    np.testing.assert_allclose(second, _shift(0.3))
+    np.testing.assert_array_equal(hold.unapplied, np.eye(3))
+
+
+def test_without_a_limit_every_motion_is_applied():
+    hold = MotionHoldBack(0.0)
+    np.testing.assert_allclose(hold.release(hold.total(_shift(0.01)), (100, 100)), _shift(0.01))
+
+
+def test_a_reset_forgets_the_held_back_motion():
+    hold = MotionHoldBack(0.25)
+    hold.release(hold.total(_shift(0.2)), (100, 100))
+    hold.reset()
+    np.testing.assert_array_equal(hold.total(_shift(0.1)), _shift(0.1))
+
+
+# ------------------------------------------------------------------ scene cut
+
+def test_a_changed_frame_with_unsupported_motion_is_a_cut():
+    cut = SceneCut(0.5, 0.35)
+    score = np.full((20, 20), 2.0, np.float32)
+    young = np.zeros((20, 20), bool)
+    assert cut.is_cut(score, young, _result([[1, 1]] * 10, ok=False))
+    assert not cut.is_cut(np.zeros_like(score), young, _result([[1, 1]] * 10, ok=False))
+
+
+def test_pixels_without_history_never_count_towards_a_scene_cut():
+    # After a restart every pixel is young: counted, a young score above 1 would restart the
+    # model on every frame.
+    cut = SceneCut(0.5, 0.35)
+    score = np.full((20, 20), 1.5, np.float32)
+    young = np.ones((20, 20), bool)
+    young[:2] = False
+    score[:2] = 0.0
+    assert not cut.is_cut(score, young, _result([[1, 1]] * 10, ok=False))
+
+
+def test_a_repeated_frame_is_no_new_shot():
+    cut = SceneCut(0.5, 0.35)
+    score = np.zeros((20, 20), np.float32)
+    score[:12] = 2.0  # 60 % differ: a cut unless the motion is supported
+    young = np.zeros((20, 20), bool)
+    assert not cut.is_cut(score, young, NO_MOTION)
+    assert cut.is_cut(score, young, _result(np.zeros((0, 2)), ok=False))
+
+
+# ------------------------------------------------------------------ still-camera switch
+
+def _textured(seed=0):
+    return np.random.default_rng(seed).integers(0, 255, (40, 50), dtype=np.uint8)
+
+
+def test_the_sample_model_serves_while_no_rigid_motion_stands_out():
+    switch = StillCameraSwitch(still_model=0.15, still_snr=4.0, window=3)
+    frame = _textured()
+    switch.reset(frame)
+    score = switch.judge(frame, NO_MOTION)  # no fit: nothing stands out
+    assert switch.camera_still and score is not None and score.shape == frame.shape
+
+
+def test_a_rigid_motion_switches_the_sample_model_off():
+    switch = StillCameraSwitch(still_model=0.15, still_snr=4.0, window=1)
+    frame = _textured()
+    switch.reset(frame)
+    points = np.random.default_rng(1).uniform(0, 40, (50, 2))
+    pan = _result(points, matrix=_shift(3.0), disp=np.tile([3.0, 0.0], (50, 1)))
+    assert switch.judge(frame, pan) is None and not switch.camera_still
+
+
+def test_a_frame_the_sample_model_does_not_explain_is_no_still_camera():
+    switch = StillCameraSwitch(still_model=0.15, still_snr=4.0, window=1)
+    switch.reset(_textured(0))
+    assert switch.judge(_textured(1), NO_MOTION) is None and not switch.camera_still
+
+
+# ------------------------------------------------------------------ the second thread
+
+@pytest.mark.parametrize("overlap", [0, 1])
+def test_jobs_are_done_when_the_block_ends(overlap):
+    thread = SecondThread(overlap=overlap, name="test")
+    seen = []
+    with thread.alongside(lambda: seen.append(threading.current_thread().name)):
+        pass
+    thread.close()
+    assert len(seen) == 1
+    assert seen[0].startswith("bgsub-test") == (overlap == 1)
+
+
+def test_a_jobs_error_reaches_the_caller_and_the_thread_pickles():
+    thread = SecondThread(overlap=1, name="test")
+
+    def boom():
+        raise RuntimeError("job failed")
+
+    with pytest.raises(RuntimeError, match="job failed"):
+        with thread.alongside(boom):
+            pass
+    twin = pickle.loads(pickle.dumps(thread))
+    with twin.alongside(lambda: None):
+        pass
+    twin.close()
+    thread.close()
+
+
+# ------------------------------------------------------------------ stage settings
+
+@pytest.mark.parametrize("config, words", [
+    (lambda: EngineConfig(work_width=5), "'work_width' must be 0 .* or at least 32"),
+    (lambda: FusionConfig(flow_damp=2.0), "'flow_damp' must be at most 1"),
+    (lambda: CameraConfig(motion_model="spline"), "'motion_model' must be one of"),
+    (lambda: BackgroundConfig(envelope=1.5), "'envelope' takes an integer"),
+])
+def test_a_stage_setting_out_of_range_is_refused(config, words):
+    with pytest.raises(InputError, match=words):
+        config()
+
+
+def test_stage_settings_are_frozen():
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        FusionConfig().threshold = 2.0
+
+
+@pytest.mark.parametrize("name, overrides", [("grbm", GRBM_TUNED), ("compensated", {})])
+def test_the_engines_parameters_are_the_stage_settings(name, overrides):
+    params = get_engine_spec(name).params
+    for stage in STAGES:
+        for key, param in config_params(stage).items():
+            expected = dataclasses.replace(param, default=overrides.get(key, param.default))
+            assert params[key] == expected, (name, key)
+
+
+def test_stage_configs_take_values_then_a_front_ends_defaults():
+    stages = stage_configs({"threshold": 2.0, "unrelated": 1}, {"flow_boost": 1.5})
+    assert stages[FusionConfig] == FusionConfig(threshold=2.0, flow_boost=1.5)
+    assert stages[EngineConfig] == EngineConfig()

@@ -211,10 +211,10 @@ def run(args: argparse.Namespace) -> int:
     info = source.info
     _check_outputs(args, source)
     engine = engines.create_engine(method, **params)
-    if args.flow_vis and not callable(getattr(engine, "debug_image", None)):
+    if args.flow_vis and not engines.supports(engine, "debug_image"):
         raise InputError(f"--flow-vis: method {method!r} cannot draw its motion (it has no "
                          "debug_image); use a moving-camera method such as grbm")
-    if args.motion and not hasattr(engine, "last_motion"):
+    if args.motion and not engines.supports(engine, "last_motion"):
         raise InputError(f"--motion: method {method!r} estimates no camera motion; use a "
                          "moving-camera method such as grbm or compensated")
     # What `bgsub analogy` and `bgsub flow` say of a random-dot model on natural images.

@@ -2,6 +2,7 @@
 registry that names them (``bgsub methods`` lists it)."""
 
 from bgsub.engines.base import (  # noqa: F401
+    CAPABILITIES,
     DEFAULT_METHOD,
     LEARNING_RATE,
     Engine,
@@ -17,4 +18,5 @@ from bgsub.engines.base import (  # noqa: F401
     opencv_keywords,
     parse_params,
     register_engine,
+    supports,
 )

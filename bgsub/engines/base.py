@@ -123,7 +123,20 @@ class Engine(ABC):
 
     Implementations decorate ``apply`` with :func:`opencv_keywords` and start it with
     :func:`check_frame`, :func:`check_learning_rate` and :func:`check_fgmask`, so every engine
-    refuses the same inputs with the same words before it changes state."""
+    refuses the same inputs with the same words before it changes state.
+
+    Optional capabilities (see :data:`CAPABILITIES`): an engine that has one defines the
+    attribute annotated below; one that has not leaves it undefined, and callers ask
+    :func:`supports` rather than guessing.
+    """
+
+    #: ``"ok"`` or ``"fallback: <reason>"`` for the last frame.
+    last_status: str
+    #: The camera motion from the previous frame to the last one: ``(3, 3) float64`` in input
+    #: pixels, or None where none was measured (a property on the engines that have it).
+    last_motion: Optional[np.ndarray]
+    #: ``debug_image() -> Optional[(H, W, 3) uint8]``: a picture of what the engine saw.
+    debug_image: Callable[[], Optional[np.ndarray]]
 
     @abstractmethod
     def apply(
@@ -185,6 +198,23 @@ class Engine(ABC):
                              f"not {got}")
         backgroundImage[...] = image
         return backgroundImage
+
+
+#: The optional capabilities of an engine, by attribute name, and what each gives.
+CAPABILITIES = {
+    "last_status": "a status after each frame ('ok' or 'fallback: <reason>')",
+    "last_motion": "the estimated camera motion of the last frame",
+    "debug_image": "a picture of what it saw (the motion field, inliers, camera fit)",
+}
+
+
+def supports(engine: Any, capability: str) -> bool:
+    """Whether ``engine`` has the optional ``capability`` (a key of :data:`CAPABILITIES`)."""
+    if capability not in CAPABILITIES:
+        raise ValueError(f"unknown engine capability {capability!r}")
+    if capability == "debug_image":
+        return callable(getattr(engine, "debug_image", None))
+    return hasattr(engine, capability)
 
 
 _C_INT_MAX = 2**31 - 1

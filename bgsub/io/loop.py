@@ -37,6 +37,7 @@ from typing import (Any, Callable, Dict, Iterable, Iterator, List, Mapping, Opti
 
 import numpy as np
 
+from bgsub.engines.base import supports
 from bgsub.errors import ProcessingError
 
 #: Signals the loop holds back while a frame is handed out: Ctrl-C, and the command line's
@@ -249,7 +250,7 @@ class FrameLoop:
         self.consumers: List[Consumer] = list(consumers)
         self._ran = False
         self.stats = RunStats(engines={
-            name: EngineStats(has_status=hasattr(engine, "last_status"))
+            name: EngineStats(has_status=supports(engine, "last_status"))
             for name, engine in self.engines.items()})
 
     def run(self, frames: Iterable[Tuple[int, np.ndarray]]) -> RunStats:

@@ -13,6 +13,7 @@ from typing import Any, Callable, Iterable, Mapping, Optional, Tuple
 
 import numpy as np
 
+from bgsub.engines.base import supports
 from bgsub.errors import ProcessingError
 from bgsub.io.loop import Consumer, FrameLoop, FrameResult, RunStats
 
@@ -35,7 +36,7 @@ class _SinkWriter(Consumer):
         elif self.engine not in engines:
             raise ValueError(f"{type(self).__name__}: no engine named {self.engine!r}")
         found = engines[self.engine]
-        if self.needs is not None and not hasattr(found, self.needs):
+        if self.needs is not None and not supports(found, self.needs):
             raise TypeError(f"{type(found).__name__} has no {self.needs} for {self.sink.path}")
 
     def close(self, *, complete: bool, error: Optional[BaseException]) -> None:

@@ -253,3 +253,13 @@ print(errors)
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout
     assert out.strip() == "[]"
+
+
+def test_capabilities_are_declared_and_asked_through_supports():
+    from bgsub.engines import CAPABILITIES, supports
+
+    moving, classical = create_engine("compensated"), create_engine("mog2")
+    assert all(supports(moving, c) for c in CAPABILITIES)
+    assert not any(supports(classical, c) for c in CAPABILITIES)
+    with pytest.raises(ValueError):
+        supports(moving, "telepathy")

@@ -56,16 +56,20 @@ class _Executor:
         return cf.as_completed(futures)
 
     def results(self) -> Iterator[Outcome]:
-        """``(item, outcome)`` of every job not reported yet, as they finish."""
-        while self._cancelled:
-            yield self._cancelled.pop(0), cf.CancelledError("not started: the batch was stopped")
-        for future in self._as_completed(list(self._pending)):
-            item = self._pending.pop(future)
-            try:
-                outcome = future.result()
-            except BaseException as err:  # the job's process died, the worker was lost, ...
-                outcome = err
-            yield item, outcome
+        """``(item, outcome)`` of every job not reported yet, as they finish (those stopped
+        before they started, by :meth:`stop`, with a ``CancelledError``)."""
+        while self._cancelled or self._pending:
+            while self._cancelled:
+                yield self._cancelled.pop(0), cf.CancelledError("not started: batch stopped")
+            for future in self._as_completed(list(self._pending)):
+                if future not in self._pending:
+                    continue  # cancelled by stop() meanwhile: reported from _cancelled
+                item = self._pending.pop(future)
+                try:
+                    outcome = future.result()
+                except BaseException as err:  # the job's process died, the worker was lost
+                    outcome = err
+                yield item, outcome
 
     def _cancel_pending(self) -> None:
         for future, item in list(self._pending.items()):
@@ -82,11 +86,12 @@ class InlineExecutor(_Executor):
         self._fn, self._items = fn, list(items)
 
     def results(self) -> Iterator[Outcome]:
-        while self._cancelled:
-            yield self._cancelled.pop(0), cf.CancelledError("not started: the batch was stopped")
-        while self._items:
-            item = self._items.pop(0)
-            yield item, self._fn(item, None)
+        while self._cancelled or self._items:
+            if self._cancelled:
+                yield self._cancelled.pop(0), cf.CancelledError("not started: batch stopped")
+            else:
+                item = self._items.pop(0)
+                yield item, self._fn(item, None)
 
     def stop(self) -> None:
         self._cancelled += self._items

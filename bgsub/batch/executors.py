@@ -21,6 +21,7 @@ On Ctrl-C call :meth:`stop` (the jobs not started are reported with
 from __future__ import annotations
 
 import concurrent.futures as cf
+import functools
 import multiprocessing
 import signal
 import time
@@ -232,3 +233,40 @@ def make_executor(*, jobs: int, threads: int, scheduler: Optional[str] = None) -
     if jobs > 1:
         return LocalExecutor(workers=jobs, threads=threads)
     return InlineExecutor()
+
+
+def _call_plain(fn: Callable[[Any], Any], numbered: Tuple[int, Any],
+                should_stop: Any) -> Any:
+    return fn(numbered[1])
+
+
+def ordered_map(fn: Callable[[Any], Any], items: Iterable[Any], *, jobs: int = 1,
+                scheduler: Optional[str] = None) -> List[Any]:
+    """``[fn(item) for item in items]``, on ``jobs`` local processes or the Dask cluster at
+    ``scheduler``: the per-sequence loop of ``bgsub eval`` and ``compare`` on a dataset.
+
+    ``fn`` must be a module-level function and the items picklable. The results come in the
+    items' order; the first exception, in that order, is raised as it is (a
+    :class:`bgsub.errors.BgsubError` keeps its one-line message). Ctrl-C cancels the items not
+    started and is raised; the running ones finish unseen (they write nothing that matters).
+    """
+    from bgsub.batch.threads import threads_per_job
+
+    items = list(items)
+    if not scheduler and (jobs <= 1 or len(items) <= 1):
+        return [fn(item) for item in items]
+    outcomes: Dict[int, Any] = {}
+    executor = make_executor(jobs=min(jobs, len(items)), scheduler=scheduler,
+                             threads=threads_per_job(min(jobs, len(items))))
+    with executor:
+        executor.start(functools.partial(_call_plain, fn), list(enumerate(items)))
+        try:
+            for (index, _), outcome in executor.results():
+                outcomes[index] = outcome
+        except KeyboardInterrupt:
+            executor.stop()
+            raise
+    for index in range(len(items)):
+        if isinstance(outcomes[index], BaseException):
+            raise outcomes[index]
+    return [outcomes[index] for index in range(len(items))]

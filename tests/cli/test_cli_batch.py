@@ -186,3 +186,44 @@ def test_a_batch_on_a_dask_cluster(tmp_path, clips, capsys):
     statuses = [r["status"] for r in json.loads((tmp_path / "s.json").read_text())["results"]]
     assert statuses == ["done", "done", "done", "failed"]
     assert all(len(_masks(tmp_path / "out" / f"{clip.stem}.mkv")) == N for clip in clips)
+
+
+@pytest.fixture
+def dataset(tmp_path) -> Path:
+    """Three small CDnet-style scenes under one root."""
+    from bgsub.samples import SceneSpec, generate_scene
+
+    root = tmp_path / "dataset"
+    for seed, category in enumerate(("pan", "jitter", "static")):
+        generate_scene(SceneSpec(category, seed=seed, width=64, height=48, n_frames=10,
+                                 warmup=0, n_objects=1), root)
+    return root
+
+
+def _eval_json(capsys, *args) -> dict:
+    assert main(["eval", *map(str, args), "--json"]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def test_a_dataset_runs_as_a_batch_and_evals_the_same_on_two_processes(tmp_path, dataset,
+                                                                         capsys):
+    code, err = _run(capsys, str(dataset / "*"), "-o", tmp_path / "preds", "--method", "mog2",
+                     "--jobs", "2")
+    assert code == 0, err
+    assert sorted(p.name for p in (tmp_path / "preds").glob("*.mkv")) == [
+        "jitter_s1.mkv", "pan_s0.mkv", "static_s2.mkv"]
+    one = _eval_json(capsys, tmp_path / "preds", dataset, "--jobs", "1")
+    two = _eval_json(capsys, tmp_path / "preds", dataset, "--jobs", "2")
+    assert one == two and len(one["sequences"]) == 3
+
+
+def test_eval_on_a_dask_cluster_gives_the_same_figures(tmp_path, dataset, capsys):
+    distributed = pytest.importorskip("distributed")
+    assert _run(capsys, str(dataset / "*"), "-o", tmp_path / "preds", "--method", "mog2",
+                "--jobs", "1")[0] == 0
+    one = _eval_json(capsys, tmp_path / "preds", dataset, "--jobs", "1")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
+                                  dashboard_address=None) as cluster:
+        on_dask = _eval_json(capsys, tmp_path / "preds", dataset, "--scheduler",
+                             cluster.scheduler_address)
+    assert one == on_dask

@@ -932,6 +932,33 @@ def _run_job(job: _Job, methods: Sequence[str], params: Mapping[str, Mapping[str
     return rows, warnings
 
 
+def _job_elsewhere(call: Tuple[_Job, Dict[str, Any]]) -> Tuple[List[ComparisonRow], List[str],
+                                                               List[str]]:
+    """:func:`_run_job` in a worker: its rows, warnings and the report files it wrote."""
+    job, options = call
+    written = _Outputs(options.pop("root"), overwrite=False, methods=options["methods"],
+                       protect=[])
+    rows, warnings = _run_job(job, options.pop("methods"), options.pop("params"), quiet=True,
+                              written=written, **options)
+    return rows, warnings, written.paths
+
+
+def _run_jobs_elsewhere(jobs: Sequence[_Job], options: Dict[str, Any], report: "ComparisonReport",
+                        written: "_Outputs", *, workers: int, scheduler: Optional[str]) -> None:
+    """Run the jobs on local processes or Dask, adding their rows, warnings and files to
+    ``report`` and ``written`` in the jobs' order. The previous run's outputs go first (every
+    ground truth was accepted already)."""
+    from bgsub.batch.executors import ordered_map
+
+    written.clear_previous()
+    calls = [(job, dict(options, root=written.root)) for job in jobs]
+    for rows, warnings, paths in ordered_map(_job_elsewhere, calls, jobs=workers,
+                                             scheduler=scheduler):
+        report.rows.extend(rows)
+        report.warnings.extend(warnings)
+        written.paths.extend(path for path in paths if path not in written.paths)
+
+
 class _Partial(Exception):
     """Ctrl-C (or SIGTERM) stopped a job after some frames: its rows so far, and the interrupt
     to raise again once they are in the report."""
@@ -1033,6 +1060,8 @@ def compare_methods(
     tile_height: int = TILE_HEIGHT,
     overwrite: bool = False,
     quiet: bool = True,
+    workers: int = 1,
+    scheduler: Optional[str] = None,
 ) -> ComparisonReport:
     """Run ``methods`` on the same frames; time them and score them against ground truth.
 
@@ -1078,6 +1107,10 @@ def compare_methods(
         files stay.
     quiet : bool
         No progress bars (they are also off when stderr is not a terminal).
+    workers, scheduler : int, str, optional
+        The inputs of a dataset run at once in local processes, or on the Dask cluster at
+        ``scheduler`` (:func:`_run_jobs_elsewhere`); the methods must be registered in the
+        workers too (built-in ones are).
 
     Returns
     -------
@@ -1137,6 +1170,20 @@ def compare_methods(
     outer = progress(jobs, total=len(jobs), desc="sequences", quiet=quiet or not is_dataset,
                      unit="seq")
     stopped: Optional[KeyboardInterrupt] = None
+    run_options = dict(methods=names, params=params, source_options=source_options,
+                       max_frames=max_frames, skip_first=skip_first, ignore_roi_bmp=ignore_roi,
+                       masks=masks, video=video, tile_height=tile_height, overwrite=overwrite,
+                       tolerate_empty=is_dataset)
+    if len(jobs) > 1 and (workers > 1 or scheduler):
+        outer.close()
+        outer = []  # the loop below is this process's; the jobs run elsewhere
+        try:
+            _run_jobs_elsewhere(jobs, run_options, report, written, workers=workers,
+                                scheduler=scheduler)
+        except (BgsubError, KeyboardInterrupt):
+            if created is not None:
+                _remove_if_no_files(created)
+            raise
     try:
         for job in outer:
             try:

@@ -227,3 +227,19 @@ def test_eval_on_a_dask_cluster_gives_the_same_figures(tmp_path, dataset, capsys
         on_dask = _eval_json(capsys, tmp_path / "preds", dataset, "--scheduler",
                              cluster.scheduler_address)
     assert one == on_dask
+
+
+def _compare_rows(folder: Path) -> list:
+    rows = json.loads((folder / "report.json").read_text())["rows"]
+    return [{k: v for k, v in row.items() if k not in ("seconds", "fps")} for row in rows]
+
+
+def test_compare_on_two_processes_reports_what_one_does(tmp_path, dataset, capsys):
+    for jobs in ("1", "2"):
+        assert main(["compare", str(dataset), "-o", str(tmp_path / f"cmp{jobs}"), "--methods",
+                     "mog2,framediff", "--masks", "mkv", "--no-video", "--jobs", jobs]) == 0
+    capsys.readouterr()
+    assert _compare_rows(tmp_path / "cmp1") == _compare_rows(tmp_path / "cmp2")
+    files = [sorted(p.relative_to(tmp_path / f"cmp{jobs}").as_posix()
+                    for p in (tmp_path / f"cmp{jobs}").rglob("*.mkv")) for jobs in ("1", "2")]
+    assert files[0] == files[1] and len(files[0]) == 6

@@ -11,7 +11,8 @@ This module only dispatches and turns errors into one line on stderr:
   failure while processing);
 * Ctrl-C -> exit status 130 (sinks have already closed their partial output and said so), also
   while the parser is built (the sub-commands' imports); ``kill`` (SIGTERM) and a closed
-  terminal (SIGHUP) take the same path while the command runs, exit status 128 + signal;
+  terminal (SIGHUP) take the same path while the command runs, exit status 128 + signal; a
+  signal after the first one is ignored (the command is already stopping);
 * an OSError that reaches here (a full disk or a closed stdout while printing) -> its reason,
   exit status 1;
 * anything else is a bug: one line naming it, exit status 1 (``BGSUB_DEBUG=1`` shows the traceback).
@@ -144,26 +145,45 @@ class Terminated(KeyboardInterrupt):
         self.signum = signum
 
 
-def _raise_terminated(signum: int, frame: object) -> None:
-    raise Terminated(signum)
+class _StopOnce:
+    """Handler of Ctrl-C, SIGTERM and SIGHUP while a command runs: the first signal raises
+    (``KeyboardInterrupt``, or :class:`Terminated`) where the program is, so that outputs close
+    as on Ctrl-C; every later one is ignored, so a second Ctrl-C (or a ``kill`` right after
+    one) cannot cut the finishing of an output short."""
+
+    def __init__(self) -> None:
+        self.fired = False
+
+    def __call__(self, signum: int, frame: object) -> None:
+        if self.fired:
+            return
+        self.fired = True
+        if signum == signal.SIGINT:
+            raise KeyboardInterrupt
+        raise Terminated(signum)
 
 
 @contextlib.contextmanager
-def _terminate_like_ctrl_c() -> Iterator[None]:
-    """SIGTERM and SIGHUP raise :class:`Terminated` while the command runs. Without this they
-    end the process on the spot and leave only hidden, unplayable ``.partial`` files."""
-    wanted = [getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name)]
+def _stop_once(*, keep: bool) -> Iterator[None]:
+    """Ctrl-C, SIGTERM and SIGHUP go to a :class:`_StopOnce` while the command runs. Without
+    this SIGTERM and SIGHUP end the process on the spot and leave only hidden, unplayable
+    ``.partial`` files. ``keep``: once a signal has stopped the command, leave the handler in
+    place (the process is about to exit; a signal then would print a traceback)."""
+    handler = _StopOnce()
+    wanted = [getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP")
+              if hasattr(signal, name)]
     saved = {}
     try:
         for signum in wanted:
-            saved[signum] = signal.signal(signum, _raise_terminated)
+            saved[signum] = signal.signal(signum, handler)
     except ValueError:  # not the main thread (main() called from a thread): leave them be
         pass
     try:
         yield
     finally:
-        for signum, handler in saved.items():
-            signal.signal(signum, handler)
+        if not (keep and handler.fired):
+            for signum, previous in saved.items():
+                signal.signal(signum, previous)
 
 
 def main(argv: Optional[List[str]] = None) -> int:
@@ -187,7 +207,8 @@ def _main(argv: Optional[List[str]]) -> int:
         parser.print_help(sys.stderr)
         return 2
     try:
-        with _terminate_like_ctrl_c():
+        # The console script (argv None) exits after this: a stop by a signal is final.
+        with _stop_once(keep=argv is None):
             return int(args.handler(args) or 0)
     except BgsubError as err:
         print(f"bgsub: error: {err}", file=sys.stderr)

@@ -1,7 +1,7 @@
 """``bgsub run``: foreground masks of a video, an image folder or a glob pattern.
 
 A thin layer: :func:`bgsub.io.sources.open_source` reads, an engine from :mod:`bgsub.engines` makes
-the masks, :func:`bgsub.io.sinks.process` writes them.
+the masks, :class:`bgsub.io.loop.FrameLoop` hands them to the writers of :mod:`bgsub.io.writers`.
 """
 
 from __future__ import annotations
@@ -16,9 +16,9 @@ from bgsub import engines
 from bgsub.cli import batch, common
 from bgsub.errors import InputError
 from bgsub.evaluation.cdnet import VideoFrames
+from bgsub.io.loop import FrameLoop, RunStats
 from bgsub.io.sinks import (
     MotionSink,
-    RunStats,
     VideoSink,
     VisSink,
     check_mask_output,
@@ -26,9 +26,9 @@ from bgsub.io.sinks import (
     check_video_output,
     is_video_path,
     open_mask_sink,
-    process,
 )
 from bgsub.io.sources import FrameSource, VideoInfo, open_source
+from bgsub.io.writers import DebugImageWriter, MaskWriter, MotionWriter, ProgressBar, VisWriter
 
 _DESCRIPTION = """\
 Find the moving objects in a video and write one foreground mask per frame (0 = background,
@@ -170,6 +170,26 @@ def _eval_notice(args: argparse.Namespace, renumbered: bool) -> Optional[str]:
             f"{shlex.quote(str(args.output))} GROUNDTRUTH {flags}`")
 
 
+def _open_writers(stack: contextlib.ExitStack, args: argparse.Namespace,
+                  info: VideoInfo) -> list:
+    """Open the outputs asked for (in ``stack``, so a failure to open one closes the others)
+    and return their writers for the frame loop."""
+    size = dict(width=info.width, height=info.height)
+    masks = stack.enter_context(open_mask_sink(args.output, **size, fps=info.fps,
+                                               overwrite=args.overwrite))
+    writers: list = [MaskWriter(masks)]
+    if args.vis:
+        writers.append(VisWriter(stack.enter_context(
+            VisSink(args.vis, **size, fps=info.fps, overwrite=args.overwrite))))
+    if args.flow_vis:
+        writers.append(DebugImageWriter(stack.enter_context(
+            VideoSink(args.flow_vis, fps=info.fps, overwrite=args.overwrite))))
+    if args.motion:
+        writers.append(MotionWriter(stack.enter_context(
+            MotionSink(args.motion, overwrite=args.overwrite))))
+    return writers
+
+
 def run(args: argparse.Namespace) -> int:
     method = _method(args.method)
     params = engines.parse_params(method, args.param)
@@ -196,20 +216,11 @@ def run(args: argparse.Namespace) -> int:
 
     with contextlib.ExitStack() as stack:
         stack.enter_context(source)
-        masks = stack.enter_context(open_mask_sink(
-            args.output, width=info.width, height=info.height, fps=info.fps,
-            overwrite=args.overwrite))
-        vis = flow_vis = motion = None
-        if args.vis:
-            vis = stack.enter_context(VisSink(args.vis, width=info.width, height=info.height,
-                                              fps=info.fps, overwrite=args.overwrite))
-        if args.flow_vis:
-            flow_vis = stack.enter_context(VideoSink(args.flow_vis, fps=info.fps,
-                                                     overwrite=args.overwrite))
-        if args.motion:
-            motion = stack.enter_context(MotionSink(args.motion, overwrite=args.overwrite))
-        frames = common.progress(source, total=info.frame_count, desc=method, quiet=args.quiet)
-        stats = process(frames, engine, masks, vis=vis, flow_vis=flow_vis, motion=motion)
+        stack.callback(engine.close)  # (its worker thread ends with the command, not after)
+        consumers = _open_writers(stack, args, info)
+        consumers.append(ProgressBar(total=info.frame_count, desc=method,
+                                     enabled=not args.quiet))
+        stats = FrameLoop({method: engine}, consumers).run(source)
 
     short = source.truncation()  # decoding ended well before the end the video declares
     if short:

@@ -43,7 +43,9 @@ from typing import Any, Callable, Dict, Iterable, Iterator, List, Optional, Tupl
 import numpy as np
 
 from bgsub.errors import BgsubError, OutputError, ProcessingError, given_path
+from bgsub.io.loop import RunStats, hold_interrupts  # noqa: F401 (re-exported)
 from bgsub.io.sources import quiet_opencv
+from bgsub.io.writers import process  # noqa: F401 (re-exported)
 
 import cv2  # noqa: E402,I100 (bgsub.io.sources sets FFmpeg's log level before cv2 starts FFmpeg)
 
@@ -408,12 +410,11 @@ def _binary_mask(mask: Any) -> np.ndarray:
 
 
 class _Sink(ABC):
-    """Context-manager behaviour shared by every sink: close, and report a partial output."""
+    """What every sink shares: a context manager that finishes its output once, and says on
+    stderr what an output holds when the run stopped early."""
 
     path: Path
-    #: Set by :func:`process` once its frames ran out: this output holds every frame, even if
-    #: the run then stops (another output failing as it is finished).
-    _all_frames = False
+    _finished = False
 
     @property
     @abstractmethod
@@ -424,15 +425,47 @@ class _Sink(ABC):
     def close(self) -> None:
         """Finish the output (also after an interruption: the partial output stays valid)."""
 
+    def finish(self, *, error: Optional[BaseException] = None, complete: bool = False) -> None:
+        """Finish the output once and, when ``error`` stopped the run, say what it holds.
+
+        Parameters
+        ----------
+        error : exception, optional
+            What stopped the run (``KeyboardInterrupt`` for Ctrl-C or a signal), or None when
+            it ended normally.
+        complete : bool
+            Every frame of the run is in this output (the frames ran out): an error after that
+            (another output failing as it is finished) does not make it partial.
+
+        A failure to finish the output raises when ``error`` is None; otherwise the run's own
+        error is the one to report, and this output's failure gets its line on stderr. Later
+        calls (and leaving a ``with`` block after this) do nothing.
+        """
+        if self._finished:
+            return
+        self._finished = True
+        try:
+            self.close()
+        except BgsubError as err:
+            if error is None:
+                raise
+            _say(f"error: {err}")
+            return
+        interrupted = isinstance(error, KeyboardInterrupt)
+        # A sink that never got a frame because opening a later output failed stays silent: the
+        # error itself is the one line the user needs.
+        if error is not None and (self.frames_written or interrupted) and not self._told():
+            _say(self._partial_message(_reason(type(error)), complete=complete))
+
     def _told(self) -> bool:
         """Whether an error has already said what became of the output."""
         return False
 
-    def _partial_message(self, reason: str) -> str:
+    def _partial_message(self, reason: str, *, complete: bool) -> str:
         n = self.frames_written
         if n == 0:
             return f"{self.path}: not written ({reason} before the first frame)"
-        if self._all_frames:
+        if complete:
             run = "the run was interrupted" if reason == "interrupted" else f"the run {reason}"
             return f"{self.path} is complete: {run} after writing all {_frames(n)}"
         return f"{self.path} is partial ({reason}) but valid: it holds {_frames(n)}"
@@ -441,20 +474,7 @@ class _Sink(ABC):
         return self
 
     def __exit__(self, exc_type, exc, tb) -> None:
-        try:
-            self.close()
-        except BgsubError as err:
-            if exc_type is None:
-                raise
-            # The error (or Ctrl-C) that stopped the run is the one the command reports; this
-            # output's own failure to finish gets its line here rather than replacing it.
-            _say(f"error: {err}")
-            return
-        interrupted = exc_type is not None and issubclass(exc_type, KeyboardInterrupt)
-        # A sink that never got a frame because opening a later output failed stays silent: the
-        # error itself is the one line the user needs.
-        if exc_type is not None and (self.frames_written or interrupted) and not self._told():
-            _say(self._partial_message(_reason(exc_type)))
+        self.finish(error=exc)
 
 
 # --------------------------------------------------------------------------------------------
@@ -593,9 +613,9 @@ class MaskFolderSink(MaskSink):
     def close(self) -> None:
         pass  # every PNG is already complete
 
-    def _partial_message(self, reason: str) -> str:
-        if self._count == 0 or self._all_frames:
-            return super()._partial_message(reason)
+    def _partial_message(self, reason: str, *, complete: bool) -> str:
+        if self._count == 0 or complete:
+            return super()._partial_message(reason, complete=complete)
         s = "s" * (self._count != 1)
         return f"{self.path} is partial ({reason}) but valid: it holds {self._count} mask{s}, " \
                f"the last {self._last}"
@@ -876,150 +896,3 @@ def check_motion_output(path: PathLike, *, overwrite: bool = False) -> Path:
     if output.suffix.lower() != ".npy":
         raise OutputError(f"{output}: a motion file is a .npy array; give a name ending in .npy")
     return output
-
-
-# --------------------------------------------------------------------------------------------
-# The processing loop
-# --------------------------------------------------------------------------------------------
-
-
-@dataclass
-class RunStats:
-    """What :func:`process` did.
-
-    Attributes
-    ----------
-    frames : int
-        Frames processed.
-    seconds : float
-        Wall-clock time of the loop (reading, engine, writing).
-    statuses : Counter
-        How many frames ended with each ``engine.last_status`` other than ``"ok"``.
-    has_status : bool
-        Whether the engine reports a ``last_status`` at all.
-    """
-
-    frames: int = 0
-    seconds: float = 0.0
-    statuses: Counter = field(default_factory=Counter)
-    has_status: bool = False
-
-    @property
-    def fps(self) -> float:
-        """Frames processed per second."""
-        return self.frames / self.seconds if self.seconds > 0 else float("inf")
-
-    @property
-    def not_ok(self) -> int:
-        """Frames whose engine status was not ``"ok"``."""
-        return sum(self.statuses.values())
-
-
-#: Signals :func:`hold_interrupts` holds back: Ctrl-C, and the command line's SIGTERM / SIGHUP.
-_HELD_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP")
-                      if hasattr(signal, name))
-
-
-@contextlib.contextmanager
-def hold_interrupts() -> Iterator[None]:
-    """Hold back Ctrl-C (and any signal with a Python handler, such as the command line's
-    SIGTERM) until the block ends, then deliver it.
-
-    Writing one frame to every sink inside such a block means an interruption never leaves one
-    output a frame longer than another. Only signals with a Python handler are held (the default
-    action of an unhandled SIGTERM cannot be deferred this way), and nothing is held outside the
-    main thread, where handlers cannot be changed.
-    """
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    held: List[int] = []
-    saved: Dict[int, Callable] = {}
-    for signum in _HELD_SIGNALS:
-        handler = signal.getsignal(signum)
-        if callable(handler):  # not SIG_DFL / SIG_IGN
-            saved[signum] = handler
-            signal.signal(signum, lambda n, _frame: held.append(n))
-    try:
-        yield
-    finally:
-        for signum, handler in saved.items():
-            signal.signal(signum, handler)
-        for signum in dict.fromkeys(held):
-            saved[signum](signum, None)  # Ctrl-C's handler raises KeyboardInterrupt here
-
-
-def process(frames: Iterable[Tuple[int, np.ndarray]], engine, masks: MaskSink, *,
-            vis: Optional[VisSink] = None, flow_vis: Optional[VideoSink] = None,
-            motion: Optional[MotionSink] = None,
-            on_frame: Optional[Callable[[int, np.ndarray], None]] = None) -> RunStats:
-    """Run ``engine`` over ``frames`` and write its masks (and pictures) to the sinks.
-
-    Parameters
-    ----------
-    frames : iterable of (int, (H, W, 3) uint8)
-        ``(index, frame)`` pairs, e.g. a :class:`bgsub.io.sources.FrameSource` (or one wrapped in a
-        progress bar).
-    engine : Engine
-        Anything with OpenCV's ``apply(image) -> (H, W) uint8 mask``.
-    masks : MaskSink
-        Gets every mask, with its frame index.
-    vis : VisSink, optional
-        Gets every frame with its mask.
-    flow_vis : VideoSink, optional
-        Gets ``engine.debug_image()`` after every frame (black where it returns ``None``, so the
-        video stays in step with the input); the engine must have ``debug_image``.
-    motion : MotionSink, optional
-        Gets ``engine.last_motion`` after every frame; the engine must have it.
-    on_frame : callable(index, mask), optional
-        Called after every frame is written.
-
-    Returns
-    -------
-    RunStats
-        Frames, time, and the frames whose ``engine.last_status`` was not ``"ok"``.
-
-    The sinks are not closed here: open them in ``with`` blocks around this call, so Ctrl-C or an
-    error leaves valid partial outputs. Each frame goes to all sinks or to none: Ctrl-C while a
-    frame is being written takes effect once it is in every output.
-    """
-    if flow_vis is not None and not callable(getattr(engine, "debug_image", None)):
-        raise TypeError(f"{type(engine).__name__} has no debug_image() for a flow visualisation")
-    if motion is not None and not hasattr(engine, "last_motion"):
-        raise TypeError(f"{type(engine).__name__} has no last_motion for a motion file")
-    outputs = [sink for sink in (masks, vis, flow_vis, motion) if isinstance(sink, _Sink)]
-    for sink in outputs:
-        sink._all_frames = False
-    stats = RunStats(has_status=hasattr(engine, "last_status"))
-    started = time.perf_counter()
-    for index, frame in frames:
-        mask = engine.apply(frame)
-        # Drawn before any write, so Ctrl-C while drawing leaves this frame out of every output;
-        # Ctrl-C while writing waits until it is in all of them: outputs that differ in length
-        # would no longer line up frame for frame.
-        picture = engine.debug_image() if flow_vis is not None else None
-        with hold_interrupts():
-            try:  # the first write checks the engine's mask (a 0/1 mask: all background)
-                masks.write(mask, index)
-            except ValueError as err:
-                raise ProcessingError(f"{type(engine).__name__} returned an unusable mask for "
-                                      f"frame {index + 1}: {err}") from None
-            if vis is not None:
-                vis.write(frame, mask)
-            if flow_vis is not None:
-                if picture is None:
-                    flow_vis.write_blank()
-                else:
-                    flow_vis.write(picture)
-            if motion is not None:
-                motion.write(engine.last_motion)
-        status = getattr(engine, "last_status", None)
-        if status is not None and status != "ok":
-            stats.statuses[str(status)] += 1
-        stats.frames += 1
-        if on_frame is not None:
-            on_frame(index, mask)
-    stats.seconds = time.perf_counter() - started
-    for sink in outputs:  # so a failure while the outputs are finished does not call them partial
-        sink._all_frames = True
-    return stats

@@ -48,7 +48,7 @@ def _cluster(workers: Optional[int]) -> Iterator[Optional[str]]:
     from distributed import LocalCluster
 
     with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                      dashboard_address=None) as cluster:
+                      dashboard_address=":0") as cluster:
         yield cluster.scheduler_address
 
 

@@ -94,37 +94,59 @@ class JobResult:
         return data
 
 
-def _stopper(should_stop: Optional[StopCheck], counter: List[int]) -> Callable[[int, Any], None]:
-    def on_frame(index: int, mask: Any) -> None:
-        counter[0] += 1
-        if should_stop is not None and should_stop():
-            raise KeyboardInterrupt  # the sinks close with what they hold, as on Ctrl-C
-    return on_frame
+def _stop_check(should_stop: Optional[StopCheck]) -> Any:
+    """A frame-loop consumer that stops the run when ``should_stop()`` says so: raised while
+    the frame is prepared, so the frame goes to no output and every output ends on the same
+    frame (partial but valid, as after Ctrl-C)."""
+    from bgsub.io.loop import Consumer
+
+    class StopCheck(Consumer):
+        def prepare(self, result: Any) -> None:
+            if should_stop is not None and should_stop():
+                raise KeyboardInterrupt
+
+        def add(self, result: Any) -> None:
+            pass
+
+    return StopCheck()
 
 
-def _process(job: RunJob, on_frame: Callable[[int, Any], None], warnings: List[str]) -> int:
-    """Run the engine over the input into the outputs; the frames processed."""
+def _writers(stack: contextlib.ExitStack, job: RunJob, info: Any) -> List[Any]:
+    """Open the job's outputs in ``stack`` and return their frame-loop writers."""
+    from bgsub.io import writers
+    from bgsub.io.sinks import MotionSink, VideoSink, VisSink, open_mask_sink
+
+    paths, overwrite = job.outputs, job.overwrite
+    size = dict(width=info.width, height=info.height, fps=info.fps, overwrite=overwrite)
+    opened = [writers.MaskWriter(stack.enter_context(open_mask_sink(paths["masks"], **size)))]
+    if "vis" in paths:
+        opened.append(writers.VisWriter(stack.enter_context(VisSink(paths["vis"], **size))))
+    if "flow_vis" in paths:
+        opened.append(writers.DebugImageWriter(stack.enter_context(
+            VideoSink(paths["flow_vis"], fps=info.fps, overwrite=overwrite))))
+    if "motion" in paths:
+        opened.append(writers.MotionWriter(stack.enter_context(
+            MotionSink(paths["motion"], overwrite=overwrite))))
+    return opened
+
+
+def _process(job: RunJob, loop_stats: List[Any], should_stop: Optional[StopCheck],
+             warnings: List[str]) -> int:
+    """Run the engine over the input into the outputs; the frames processed. The frame loop's
+    stats go to ``loop_stats`` first, so an interrupted run's count is known."""
     from bgsub import engines
-    from bgsub.io.sinks import MotionSink, VideoSink, VisSink, open_mask_sink, process
+    from bgsub.io.loop import FrameLoop
     from bgsub.io.sources import open_source
 
     source = open_source(job.input, **job.source)
     engine = engines.create_engine(job.method, **job.params, **job.run_params)
-    info, paths, overwrite = source.info, job.outputs, job.overwrite
-    size = dict(width=info.width, height=info.height, fps=info.fps, overwrite=overwrite)
     with contextlib.ExitStack() as stack:
         stack.enter_context(source)
-        masks = stack.enter_context(open_mask_sink(paths["masks"], **size))
-        sinks: Dict[str, Any] = {}
-        if "vis" in paths:
-            sinks["vis"] = stack.enter_context(VisSink(paths["vis"], **size))
-        if "flow_vis" in paths:
-            sinks["flow_vis"] = stack.enter_context(VideoSink(paths["flow_vis"], fps=info.fps,
-                                                              overwrite=overwrite))
-        if "motion" in paths:
-            sinks["motion"] = stack.enter_context(MotionSink(paths["motion"],
-                                                             overwrite=overwrite))
-        stats = process(source, engine, masks, on_frame=on_frame, **sinks)
+        stack.callback(getattr(engine, "close", lambda: None))  # its second thread, if any
+        consumers = _writers(stack, job, source.info) + [_stop_check(should_stop)]
+        loop = FrameLoop({job.method: engine}, consumers)
+        loop_stats.append(loop.stats)
+        stats = loop.run(source)
     short = source.truncation()
     if short:
         warnings.append(short)
@@ -141,7 +163,7 @@ def run_input(job: RunJob, should_stop: Optional[StopCheck] = None) -> JobResult
 
     limit_opencv(job.threads)
     result = JobResult(job.name, job.input, FAILED, outputs=dict(job.outputs))
-    counter = [0]
+    loop_stats: List[Any] = []
     if should_stop is not None and should_stop():  # stopped before this job's turn
         result.status = NOT_STARTED
         return result
@@ -149,17 +171,18 @@ def run_input(job: RunJob, should_stop: Optional[StopCheck] = None) -> JobResult
     try:
         settings = job.settings()
         record.write(job.record, status="running", settings=settings, outputs=job.outputs)
-        result.frames = _process(job, _stopper(should_stop, counter), result.warnings)
+        result.frames = _process(job, loop_stats, should_stop, result.warnings)
         record.write(job.record, status="complete", settings=settings, outputs=job.outputs,
                      frames=result.frames)
         result.status = DONE
     except KeyboardInterrupt:
-        result.status, result.frames = INTERRUPTED, counter[0]
-        result.message = f"interrupted after {counter[0]} frames (outputs partial but valid)"
+        result.status = INTERRUPTED
+        result.message = "interrupted (outputs partial but valid)"
     except BgsubError as err:
-        result.frames, result.message = counter[0], str(err)
+        result.message = str(err)
     except Exception as err:  # a bug, or a library failing on this input: this input only
-        result.frames = counter[0]
         result.message = f"internal error: {type(err).__name__}: {err}"
+    if loop_stats and not result.status == DONE:
+        result.frames = loop_stats[0].frames
     result.seconds = time.perf_counter() - started
     return result

@@ -90,7 +90,7 @@ def test_a_stopped_job_leaves_a_valid_partial_output_that_is_redone(tmp_path):
 
     def stop_after_four() -> bool:
         asked.append(1)
-        return len(asked) > 4  # asked once before the first frame, then after each
+        return len(asked) > 5  # asked before the job starts, then before each frame's writes
 
     result = run_input(job, stop_after_four)
     assert (result.status, result.frames) == (INTERRUPTED, 4)

@@ -12,13 +12,13 @@ import numpy as np
 import pytest
 
 from bgsub.cli import main
-from bgsub.engines import Param, register_engine
+from bgsub.engines import Engine, Param, register_engine
 from bgsub.io.sources import open_source
 
 W, H, N = 64, 48, 12
 
 
-class _StopsAt:
+class _StopsAt(Engine):
     """mog2 that acts as if Ctrl-C were pressed at frame ``at`` (0-based)."""
 
     def __init__(self, at: int) -> None:
@@ -178,7 +178,7 @@ def test_without_dask_the_scheduler_option_names_the_extra(tmp_path, clips):
 def test_a_batch_on_a_dask_cluster(tmp_path, clips, capsys):
     distributed = pytest.importorskip("distributed")
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
-                                  dashboard_address=None) as cluster:
+                                  dashboard_address=":0") as cluster:
         code, err = _run(capsys, *clips, tmp_path / "broken.mp4", "-o", tmp_path / "out",
                          "--method", "mog2", "--scheduler", cluster.scheduler_address,
                          "--summary", tmp_path / "s.json")
@@ -223,7 +223,7 @@ def test_eval_on_a_dask_cluster_gives_the_same_figures(tmp_path, dataset, capsys
                 "--jobs", "1")[0] == 0
     one = _eval_json(capsys, tmp_path / "preds", dataset, "--jobs", "1")
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
-                                  dashboard_address=None) as cluster:
+                                  dashboard_address=":0") as cluster:
         on_dask = _eval_json(capsys, tmp_path / "preds", dataset, "--scheduler",
                              cluster.scheduler_address)
     assert one == on_dask

@@ -48,6 +48,8 @@ class RunJob:
         Replace existing outputs (set for outputs the batch itself made).
     threads : int
         OpenCV threads of the process running the job.
+    progress : bool
+        Show a progress bar over the frames (for a job run in the command's own process).
     """
 
     input: str
@@ -60,6 +62,7 @@ class RunJob:
     source: Dict[str, Any] = field(default_factory=dict)
     overwrite: bool = False
     threads: int = 1
+    progress: bool = False
 
     def settings(self) -> Dict[str, Any]:
         """The settings its completion record holds (see :func:`record.settings`)."""
@@ -137,6 +140,7 @@ def _process(job: RunJob, loop_stats: List[Any], should_stop: Optional[StopCheck
     from bgsub import engines
     from bgsub.io.loop import FrameLoop
     from bgsub.io.sources import open_source
+    from bgsub.io.writers import ProgressBar
 
     source = open_source(job.input, **job.source)
     engine = engines.create_engine(job.method, **job.params, **job.run_params)
@@ -144,6 +148,8 @@ def _process(job: RunJob, loop_stats: List[Any], should_stop: Optional[StopCheck
         stack.enter_context(source)
         stack.callback(getattr(engine, "close", lambda: None))  # its second thread, if any
         consumers = _writers(stack, job, source.info) + [_stop_check(should_stop)]
+        consumers.append(ProgressBar(total=source.info.frame_count, desc=job.name,
+                                     enabled=job.progress))
         loop = FrameLoop({job.method: engine}, consumers)
         loop_stats.append(loop.stats)
         stats = loop.run(source)

@@ -66,16 +66,17 @@ def _distinct_from_input(item: BatchInput, outputs: Mapping[str, str]) -> Option
 
 def plan(items: Iterable[BatchInput], layout: OutputLayout, *, method: str,
          params: Mapping[str, Any], run_params: Mapping[str, Any],
-         source: Mapping[str, Any], overwrite: bool, threads: int
+         source: Mapping[str, Any], overwrite: bool, threads: int, progress: bool = False
          ) -> Tuple[List[RunJob], List[JobResult]]:
     """The jobs to run, and the results of the inputs that need none (complete outputs:
-    ``skipped``; outputs that are not the batch's to replace: ``failed``, with the reason)."""
+    ``skipped``; outputs that are not the batch's to replace: ``failed``, with the reason).
+    ``progress``: the jobs show a bar over their frames (when they run in this process)."""
     jobs: List[RunJob] = []
     settled: List[JobResult] = []
     for item in items:
         outputs = layout.outputs(item.name)
         job = RunJob(item.path, item.name, outputs, layout.record(item.name), method,
-                     dict(params), dict(run_params), dict(source), overwrite, threads)
+                     dict(params), dict(run_params), dict(source), overwrite, threads, progress)
         refused = _distinct_from_input(item, outputs)
         decision = record.RUN
         if refused is None:
@@ -129,6 +130,7 @@ def check_method(method: str, params: Mapping[str, Any], layout: OutputLayout) -
     from bgsub import engines
 
     engine = engines.create_engine(method, **params)
+    getattr(engine, "close", lambda: None)()  # its second thread, if any
     if layout.flow_vis and not callable(getattr(engine, "debug_image", None)):
         raise InputError(f"--flow-vis: method {method!r} cannot draw its motion (it has no "
                          "debug_image); use a moving-camera method such as grbm")

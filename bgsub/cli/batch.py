@@ -121,7 +121,8 @@ def run_batch(args: argparse.Namespace, *, method: str, params: dict) -> int:
                   if k not in params}
     todo, settled = runner.plan(items, layout, method=method, params=params,
                                 run_params=run_params, source=common.source_kwargs(args),
-                                overwrite=args.overwrite, threads=per_job)
+                                overwrite=args.overwrite, threads=per_job,
+                                progress=jobs == 1 and not args.scheduler and not args.quiet)
     results = {result.name: result for result in settled}
     bar = tqdm(total=len(items), initial=len(settled), unit="input", desc=method,
                file=sys.stderr, disable=args.quiet or not sys.stderr.isatty(), leave=False)

@@ -67,7 +67,7 @@ def measure(inputs: List[Path], out: Path, *, jobs: int = 1, dask: Optional[int]
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--copies", type=int, default=8)
-    parser.add_argument("--jobs", type=int, nargs="+", default=[1, 2])
+    parser.add_argument("--jobs", type=int, nargs="*", default=[1, 2])
     parser.add_argument("--dask", type=int, default=0, help="workers of a LocalCluster (0: none)")
     parser.add_argument("--tiny", type=int, default=0, help="one-frame jobs for the overhead")
     args = parser.parse_args()

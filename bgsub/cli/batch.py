@@ -8,6 +8,7 @@ failure, the closing summary line and the ``--summary`` JSON.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from typing import Any, Optional
@@ -51,6 +52,19 @@ def add_batch_options(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--summary", default=None, metavar="FILE.json",
                        help="write a JSON summary of the batch: per input its status, frames, "
                             "fps and output paths")
+
+
+def for_workers(args: argparse.Namespace, *names: str) -> None:
+    """With ``--scheduler``, make the paths in ``args`` of these option names absolute: the
+    Dask workers do not share this process's working folder."""
+    if not getattr(args, "scheduler", None):
+        return
+    for name in names:
+        value = getattr(args, name, None)
+        if isinstance(value, list):
+            setattr(args, name, [os.path.abspath(v) for v in value])
+        elif value:
+            setattr(args, name, os.path.abspath(value))
 
 
 def jobs_and_threads(args: argparse.Namespace) -> tuple:
@@ -111,6 +125,7 @@ def run_batch(args: argparse.Namespace, *, method: str, params: dict) -> int:
     from bgsub.batch.job import FAILED, INTERRUPTED, run_input
     from bgsub.cli import common
 
+    for_workers(args, "input", "output", "vis", "flow_vis", "motion")
     items = inputs.expand(args.input)
     layout = _layout(args)
     jobs, per_job = jobs_and_threads(args)

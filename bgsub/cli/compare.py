@@ -149,6 +149,7 @@ def run(args: argparse.Namespace) -> int:
     params = parse_method_params(args.param, methods)
     if args.max_frames is not None and args.max_frames < 1:
         raise InputError(f"--max-frames takes a number >= 1, not {args.max_frames}")
+    batch.for_workers(args, "input", "output", "gt")
     try:
         report = compare_methods(
             args.input, methods=methods, report_dir=args.output, gt=args.gt, params=params,

@@ -126,6 +126,7 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(f"--{option.replace('_', '-')} takes a frame number >= 1, "
                              f"not {value}")
     jobs, _ = batch.jobs_and_threads(args)
+    batch.for_workers(args, "pred", "groundtruth")
     csv_path = None
     if args.csv not in (None, "-"):
         csv_path = check_file_output(args.csv, overwrite=args.overwrite)

@@ -368,6 +368,10 @@ class Slow(Engine):
         Slow.calls += 1
         if Slow.calls == 3:  # two masks are written: tell the test it may interrupt
             open(os.environ["BGSUB_TEST_MARKER"], "w").close()
+        go = os.environ.get("BGSUB_TEST_GO")  # then wait for this file, when given
+        deadline = time.monotonic() + 60
+        while Slow.calls >= 3 and go and not os.path.exists(go) and time.monotonic() < deadline:
+            time.sleep(0.01)
         time.sleep(0.1)
         return np.zeros(image.shape[:2], np.uint8)
 
@@ -649,3 +653,101 @@ def test_no_eval_range_is_suggested_for_masks_numbered_by_position(tmp_path, cap
     assert code == 0
     assert ("masks are numbered by position" in err) == (not hinted)
     assert ("bgsub eval" in err and "--start 2" in err) == hinted
+
+
+def _wait_for(path: Path, child: subprocess.Popen) -> None:
+    deadline = time.monotonic() + 60
+    while not path.exists() and child.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert path.exists(), child.communicate(timeout=60)[1]
+
+
+def test_a_second_run_writing_the_same_output_is_refused_and_the_first_finishes(tmp_path, clip):
+    out, marker, go = tmp_path / "m.mkv", tmp_path / "two-written", tmp_path / "go"
+    env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1",
+               BGSUB_TEST_MARKER=str(marker), BGSUB_TEST_GO=str(go))
+    first = subprocess.Popen([sys.executable, "-c", _SLOW_RUN, str(clip), "-o", str(out)],
+                             stderr=subprocess.PIPE, text=True, env=env)
+    _wait_for(marker, first)  # the first run is writing, and waits for `go`
+    second = subprocess.run([sys.executable, "-c", _SLOW_RUN, str(clip), "-o", str(out)],
+                            capture_output=True, text=True, timeout=120,
+                            env=dict(env, BGSUB_TEST_MARKER=str(tmp_path / "unused"),
+                                     BGSUB_TEST_GO=""))
+    go.touch()
+    _, err = first.communicate(timeout=120)
+    assert second.returncode == 2
+    assert second.stderr == f"bgsub: error: {out}: another run is writing it now; wait for it " \
+                            "to end or choose another name\n"
+    assert first.returncode == 0, err
+    assert len(_video_frames(out)) == N
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["clip.mkv", "go", "m.mkv",
+                                                          "two-written"]
+
+
+_CTRL_C_THEN_ANOTHER = """
+import atexit, os, signal, sys
+import cv2
+import numpy as np
+from bgsub.cli import main
+from bgsub.engines import Engine, register_engine
+
+second = getattr(signal, os.environ["BGSUB_TEST_SECOND"])
+when = os.environ["BGSUB_TEST_WHEN"]
+opencv_writer = cv2.VideoWriter
+
+
+class Writer:
+    # OpenCV's video writer, but a second signal arrives while the video is being finished.
+    def __init__(self, *args):
+        self._writer = opencv_writer(*args)
+
+    def isOpened(self):
+        return self._writer.isOpened()
+
+    def write(self, image):
+        return self._writer.write(image)
+
+    def release(self):
+        if when == "finishing":
+            os.kill(os.getpid(), second)
+        self._writer.release()
+
+
+cv2.VideoWriter = Writer
+if when == "exiting":  # (the last thing the process runs)
+    atexit.register(lambda: os.kill(os.getpid(), second))
+
+
+@register_engine("_test_ctrl_c", "test: Ctrl-C at the fourth frame")
+class CtrlC(Engine):
+    calls = 0
+
+    def apply(self, image, fgmask=None, learning_rate=-1.0):
+        CtrlC.calls += 1
+        if CtrlC.calls == 4:
+            os.kill(os.getpid(), signal.SIGINT)
+        return np.zeros(image.shape[:2], np.uint8)
+
+
+sys.argv = ["bgsub", "run", *sys.argv[1:], "-m", "_test_ctrl_c"]  # as the console script
+raise SystemExit(main())
+"""
+
+
+@pytest.mark.parametrize("second, when", [
+    ("SIGTERM", "finishing"),  # a kill right after Ctrl-C
+    ("SIGINT", "finishing"),  # Ctrl-C pressed twice
+    ("SIGINT", "exiting"),
+])
+def test_a_second_signal_during_shutdown_keeps_the_output_and_prints_no_traceback(
+        tmp_path, clip, second, when):
+    out = tmp_path / "m.mkv"
+    env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1",
+               BGSUB_TEST_SECOND=second, BGSUB_TEST_WHEN=when)
+    done = subprocess.run([sys.executable, "-c", _CTRL_C_THEN_ANOTHER, str(clip), "-o",
+                           str(out)], capture_output=True, text=True, env=env, timeout=120)
+    assert done.returncode == 130, done.stderr
+    assert done.stderr == (f"bgsub: {out} is partial (interrupted) but valid: it holds 3 "
+                           "frames\nbgsub: interrupted\n")
+    assert len(_video_frames(out)) == 3
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["clip.mkv", "m.mkv"]

@@ -11,7 +11,7 @@ import cv2
 import numpy as np
 import pytest
 
-from bgsub.io import sinks
+from bgsub.io import outputs, sinks
 from bgsub.errors import OutputError, ProcessingError
 from bgsub.io.sinks import VideoSink, VisSink, open_mask_sink, process, render_overlay
 
@@ -195,7 +195,7 @@ def test_read_only_folder(tmp_path):
 
 def test_unwritable_folder_is_refused_before_writing(tmp_path, monkeypatch):
     # The same check as test_read_only_folder, reachable when the tests run as root.
-    monkeypatch.setattr(sinks.os, "access", lambda path, mode: False)
+    monkeypatch.setattr(outputs.os, "access", lambda path, mode: False)
     with pytest.raises(OutputError, match="permission"):
         open_mask_sink(tmp_path / "out", width=W, height=H, fps=20)
     assert os.listdir(tmp_path) == []
@@ -239,7 +239,7 @@ class ClosedWriter:
 
 
 def test_failing_video_writer_is_an_output_error(tmp_path, monkeypatch):
-    monkeypatch.setattr(sinks.cv2, "VideoWriter", ClosedWriter)
+    monkeypatch.setattr(cv2, "VideoWriter", ClosedWriter)
     with pytest.raises(OutputError, match="video writer"):
         open_mask_sink(tmp_path / "m.mkv", width=W, height=H, fps=20)
     assert os.listdir(tmp_path) == []
@@ -456,48 +456,6 @@ class _Drawing(_Threshold):
         return np.full((H, W, 3), 200, np.uint8)
 
 
-def test_ctrl_c_while_a_frame_is_written_reaches_every_sink_first(tmp_path, monkeypatch):
-    # Ctrl-C arriving while the mask of frame 3 is written (the signal itself, not an exception
-    # raised by the sink) must wait until frame 3 is in the other outputs too.
-    write_mask = sinks.MaskVideoSink._write
-
-    def write_then_ctrl_c(self, mask, index):
-        write_mask(self, mask, index)
-        if self.frames_written == 3:
-            signal.raise_signal(signal.SIGINT)
-
-    monkeypatch.setattr(sinks.MaskVideoSink, "_write", write_then_ctrl_c)
-    before = signal.getsignal(signal.SIGINT)
-    rng = np.random.default_rng(2)
-    frames = [(k, rng.integers(0, 256, (H, W, 3), dtype=np.uint8)) for k in range(6)]
-    with pytest.raises(KeyboardInterrupt):
-        with open_mask_sink(tmp_path / "m.mkv", width=W, height=H, fps=10) as masks, \
-                VisSink(tmp_path / "v.mkv", width=W, height=H, fps=10) as vis, \
-                VideoSink(tmp_path / "f.mkv", fps=10) as flow:
-            process(frames, _Drawing(), masks, vis=vis, flow_vis=flow)
-    assert [len(_read_video(tmp_path / name)) for name in ("m.mkv", "v.mkv", "f.mkv")] == [3] * 3
-    assert signal.getsignal(signal.SIGINT) is before
-
-
-@pytest.mark.parametrize("stop, words", [
-    (ProcessingError("another output failed"), "the run stopped by an error"),
-    (KeyboardInterrupt(), "the run was interrupted"),
-])
-def test_an_output_that_got_every_frame_is_called_complete_not_partial(tmp_path, capsys, stop,
-                                                                       words):
-    frames = [(k, np.full((H, W, 3), 60 * k, np.uint8)) for k in range(4)]
-    with pytest.raises(type(stop)):
-        with open_mask_sink(tmp_path / "m.mkv", width=W, height=H, fps=10) as masks, \
-                open_mask_sink(tmp_path / "out", width=W, height=H, fps=10) as folder:
-            process(frames, _Threshold(), masks)
-            process(frames, _Threshold(), folder)
-            raise stop  # as another output failing as it is finished does
-    err = capsys.readouterr().err
-    assert err == (f"bgsub: {tmp_path / 'out'} is complete: {words} after writing all 4 "
-                   f"frames\nbgsub: {tmp_path / 'm.mkv'} is complete: {words} after writing "
-                   "all 4 frames\n")
-
-
 @pytest.mark.parametrize("check", [sinks.check_file_output, sinks.check_video_output,
                                    sinks.check_mask_output])
 def test_an_empty_output_path_is_refused_not_read_as_the_current_folder(check):
@@ -517,8 +475,8 @@ def test_an_output_under_a_file_names_the_file_as_not_a_folder(tmp_path):
 
 
 def test_a_refused_file_is_explained_with_the_systems_reason(tmp_path):
-    assert "No such file" in sinks._why_not_writable(tmp_path / "missing" / "x.mkv")
-    assert sinks._why_not_writable(tmp_path / "x.mkv") == ""
+    assert "No such file" in outputs.why_not_writable(tmp_path / "missing" / "x.mkv")
+    assert outputs.why_not_writable(tmp_path / "x.mkv") == ""
     assert list(tmp_path.iterdir()) == []  # the probe leaves nothing behind
 
 

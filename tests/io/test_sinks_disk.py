@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 import pytest
 
-from bgsub.io import sinks
+from bgsub.io import mask_sinks, motion_sink, videofile
 from bgsub.errors import OutputError, ProcessingError
 from bgsub.io.sinks import MotionSink, VideoSink, VisSink, open_mask_sink, process
 
@@ -27,7 +27,7 @@ _REAL_WRITER = cv2.VideoWriter
 
 
 class _Disk:
-    """The files bgsub.io.sinks opens get ``free`` bytes in all, then ENOSPC, as on a full disk
+    """The files the mask and motion sinks open get ``free`` bytes in all, then ENOSPC, as on a full disk
     (writing over bytes already in a file takes no more space)."""
 
     def __init__(self, monkeypatch, free: int) -> None:
@@ -38,7 +38,8 @@ class _Disk:
             fh = real_open(file, mode, *args, **kwargs)
             return _Metered(fh, self) if "w" in mode else fh
 
-        monkeypatch.setattr(sinks, "open", small_open, raising=False)
+        for module in (mask_sinks, motion_sink):
+            monkeypatch.setattr(module, "open", small_open, raising=False)
 
 
 class _Metered:
@@ -179,7 +180,7 @@ def test_a_motion_file_without_room_for_its_header_is_refused(tmp_path, monkeypa
 
 def test_a_video_the_full_disk_left_unplayable_is_removed_not_given_its_name(
         tmp_path, monkeypatch, cut_short):
-    monkeypatch.setattr(sinks, "_free_bytes", lambda folder: 0)
+    monkeypatch.setattr(videofile, "free_bytes", lambda folder: 0)
     with pytest.raises(ProcessingError, match=r"v.mp4: the disk is full; the unfinished video "
                                               r"would not play, so it was removed \(it was to "
                                               r"hold 4 frames\)"):
@@ -191,7 +192,7 @@ def test_a_video_the_full_disk_left_unplayable_is_removed_not_given_its_name(
 
 def test_a_mask_video_the_full_disk_cut_short_is_kept_and_says_what_it_holds(
         tmp_path, monkeypatch, cut_short):
-    monkeypatch.setattr(sinks, "_free_bytes", lambda folder: 0)
+    monkeypatch.setattr(videofile, "free_bytes", lambda folder: 0)
     path = tmp_path / "m.mkv"
     with pytest.raises(ProcessingError) as caught:
         with open_mask_sink(path, width=W, height=H, fps=10) as sink:
@@ -207,14 +208,14 @@ def test_a_mask_video_the_full_disk_cut_short_is_kept_and_says_what_it_holds(
 def test_a_video_writer_that_cannot_open_on_a_full_disk_says_the_disk_is_full(tmp_path,
                                                                            monkeypatch):
     monkeypatch.setattr(cv2, "VideoWriter", ClosedWriter)
-    monkeypatch.setattr(sinks, "_free_bytes", lambda folder: 0)
+    monkeypatch.setattr(videofile, "free_bytes", lambda folder: 0)
     with pytest.raises(OutputError, match=r"v.mp4: the disk is full; OpenCV cannot open"):
         VideoSink(tmp_path / "v.mp4", fps=10, width=W, height=H)
     assert list(tmp_path.iterdir()) == []
 
 
 def test_a_nearly_full_disk_is_no_error_when_the_video_reads_back_whole(tmp_path, monkeypatch):
-    monkeypatch.setattr(sinks, "_free_bytes", lambda folder: 0)
+    monkeypatch.setattr(videofile, "free_bytes", lambda folder: 0)
     with open_mask_sink(tmp_path / "m.mkv", width=W, height=H, fps=20) as sink:
         for mask in _masks(3):
             sink.write(mask)

@@ -216,7 +216,8 @@ def run(args: argparse.Namespace) -> int:
 
     with contextlib.ExitStack() as stack:
         stack.enter_context(source)
-        stack.callback(engine.close)  # (its worker thread ends with the command, not after)
+        if callable(getattr(engine, "close", None)):  # (a plugin may not subclass Engine)
+            stack.callback(engine.close)  # its worker thread ends with the command, not after
         consumers = _open_writers(stack, args, info)
         consumers.append(ProgressBar(total=info.frame_count, desc=method,
                                      enabled=not args.quiet))

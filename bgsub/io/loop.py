@@ -247,6 +247,7 @@ class FrameLoop:
             raise ValueError("FrameLoop needs at least one engine")
         self.engines: Dict[str, Any] = dict(engines)
         self.consumers: List[Consumer] = list(consumers)
+        self._ran = False
         self.stats = RunStats(engines={
             name: EngineStats(has_status=hasattr(engine, "last_status"))
             for name, engine in self.engines.items()})
@@ -254,7 +255,10 @@ class FrameLoop:
     def run(self, frames: Iterable[Tuple[int, np.ndarray]]) -> RunStats:
         """Run every frame of ``frames`` (``(index, (H, W, 3) uint8)`` pairs), then close the
         consumers; returns :attr:`stats`. An error or interrupt closes them too and is raised
-        again once they are closed."""
+        again once they are closed. A loop runs once (its consumers are closed after)."""
+        if self._ran:
+            raise RuntimeError("a FrameLoop runs once: its consumers are closed")
+        self._ran = True
         started = time.perf_counter()
         with _Interrupts() as interrupts, contextlib.ExitStack() as stack:
             for consumer in self.consumers:

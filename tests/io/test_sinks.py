@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-import signal
 from pathlib import Path
 from typing import List
 
@@ -447,13 +446,6 @@ def test_process_refuses_flow_vis_without_debug_image(tmp_path):
             VideoSink(tmp_path / "f.mp4", fps=10) as flow:
         with pytest.raises(TypeError):
             process([], _Threshold(), sink, flow_vis=flow)
-
-
-class _Drawing(_Threshold):
-    """Also has a debug picture, for a flow visualisation."""
-
-    def debug_image(self):
-        return np.full((H, W, 3), 200, np.uint8)
 
 
 @pytest.mark.parametrize("check", [sinks.check_file_output, sinks.check_video_output,

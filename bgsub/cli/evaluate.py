@@ -136,8 +136,8 @@ def run(args: argparse.Namespace) -> int:
         ignore_roi_bmp=args.no_roi_bmp, allow_missing=args.allow_missing,
         method=args.method,
         skip_first=args.skip_first, first_frame=args.first_frame, last_frame=args.last_frame,
-        video_start=args.start, video_step=args.step, video_stop=args.stop,
-        quiet=args.quiet or jobs > 1 or bool(args.scheduler), jobs=jobs, scheduler=args.scheduler,
+        video_start=args.start, video_step=args.step, video_stop=args.stop, quiet=args.quiet,
+        jobs=jobs, scheduler=args.scheduler,
     )
 
     if csv_path is not None:

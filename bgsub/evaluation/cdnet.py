@@ -1280,6 +1280,8 @@ def evaluate_dataset(
                          f"sequences ({listed}); use --allow-missing to count them as background")
     from bgsub.batch.executors import ordered_map
 
+    if scheduler or jobs > 1:
+        options["quiet"] = True  # bars of several processes at once would garble the terminal
     calls = [(preds[rel], seq, dict(options, name=rel.name, category=category_of(rel),
                                      allow_missing=allow_missing))
              for seq, rel in zip(sequences, rels)]

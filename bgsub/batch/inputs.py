@@ -57,12 +57,11 @@ def _videos_in(folder: Path) -> List[Path]:
     return sorted((p for p in folder.iterdir() if _is_video(p)), key=lambda p: natural_key(p.name))
 
 
-def _from_folder(folder: Path) -> List[BatchInput]:
-    if _holds_images(folder):
-        return [BatchInput(str(folder), folder.resolve().name)]
-    videos = _videos_in(folder)
-    if not videos:
-        return [BatchInput(str(folder), folder.resolve().name)]  # "holds no images" when run
+def _from_folder(text: str) -> List[BatchInput]:
+    folder = Path(text)
+    videos = [] if _holds_images(folder) else _videos_in(folder)
+    if not videos:  # an image sequence (or a folder run then calls empty)
+        return [BatchInput(text, folder.resolve().name)]
     return [BatchInput(str(p), p.stem) for p in videos]
 
 
@@ -85,7 +84,7 @@ def expand(arguments: Iterable[str]) -> List[BatchInput]:
     for text in arguments:
         path = Path(text)
         if path.is_dir():
-            items += _from_folder(path)
+            items += _from_folder(text)
         elif not path.exists() and glob.has_magic(text):
             items += _from_glob(text)
         else:

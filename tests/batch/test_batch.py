@@ -49,6 +49,7 @@ def test_a_folder_or_glob_of_images_is_one_input(tmp_path):
     for k in range(3):
         cv2.imwrite(str(frames / f"in{k:06d}.png"), np.zeros((16, 16, 3), np.uint8))
     assert inputs.expand([str(frames)]) == [inputs.BatchInput(str(frames), "seq")]
+    assert not inputs.is_batch([f"{frames}/"])
     pattern = str(frames / "*.png")
     assert inputs.expand([pattern]) == [inputs.BatchInput(pattern, "seq")]
     assert not inputs.is_batch([pattern])

@@ -72,3 +72,80 @@ def model_path():
         except ModelError as err:
             pytest.skip(f"shipped natural model not installed: {err}")
     return _NATURAL["m"]
+
+
+# --------------------------------------------------------------------------------------------
+# Small CDnet sequences and predictions on disk (evaluation and compare tests)
+# --------------------------------------------------------------------------------------------
+
+
+def write_gt_sequence(folder, gts, *, temporal_roi=None, roi=None):
+    """A CDnet sequence folder holding ground truth only: ``groundtruth/gtNNNNNN.png`` for each
+    ``{frame_number: (H, W) uint8 labels}`` of ``gts``, optional ``temporalROI.txt`` from
+    ``(first, last)`` and ``ROI.bmp`` from an ``(H, W) uint8`` image. Returns ``folder``."""
+    import cv2
+
+    (folder / "groundtruth").mkdir(parents=True)
+    for number, gt in gts.items():
+        cv2.imwrite(str(folder / "groundtruth" / f"gt{number:06d}.png"), gt)
+    if temporal_roi is not None:
+        (folder / "temporalROI.txt").write_text(f"{temporal_roi[0]} {temporal_roi[1]}\n")
+    if roi is not None:
+        cv2.imwrite(str(folder / "ROI.bmp"), roi)
+    return folder
+
+
+def write_bins(folder, masks):
+    """A folder of ``binNNNNNN.png`` masks from ``{frame_number: (H, W) uint8}``."""
+    import cv2
+
+    folder.mkdir(parents=True)
+    for number, mask in masks.items():
+        cv2.imwrite(str(folder / f"bin{number:06d}.png"), mask)
+    return folder
+
+
+def write_mask_video(path, masks):
+    """A lossless mask video (FFV1 ``.mkv``) of ``masks``, ``(H, W) uint8`` each, in order."""
+    from bgsub.io.sinks import open_mask_sink
+
+    h, w = masks[0].shape
+    with open_mask_sink(path, width=w, height=h, fps=25.0) as sink:
+        for k, mask in enumerate(masks):
+            sink.write(mask, k)
+    return path
+
+
+#: Frame size of :func:`write_input_sequence`.
+SCENE_W, SCENE_H = 64, 48
+
+
+def write_input_sequence(folder, *, n_frames=8, side=10, speed=4, seed=0, temporal_roi=None,
+                         roi=None):
+    """A tiny CDnet sequence with its input: static textured background, a bright square moving
+    right by ``speed`` pixels a frame.
+
+    ``input/inNNNNNN.png`` (lossless, so no test depends on JPEG), ``groundtruth/gtNNNNNN.png``
+    (0/255), optional ``temporalROI.txt`` (the text ``"first last"``) and ``ROI.bmp``
+    (``(SCENE_H, SCENE_W) uint8``); frames are ``SCENE_W x SCENE_H``.
+    """
+    import cv2
+
+    rng = np.random.default_rng(seed)
+    background = rng.integers(40, 120, size=(SCENE_H, SCENE_W), dtype=np.uint8)
+    (folder / "input").mkdir(parents=True)
+    (folder / "groundtruth").mkdir()
+    for k in range(n_frames):
+        frame = background.copy()
+        gt = np.zeros((SCENE_H, SCENE_W), np.uint8)
+        x, y = 2 + speed * k, 12 + seed
+        frame[y:y + side, x:x + side] = 230
+        gt[y:y + side, x:x + side] = 255
+        cv2.imwrite(str(folder / "input" / f"in{k + 1:06d}.png"),
+                    cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR))
+        cv2.imwrite(str(folder / "groundtruth" / f"gt{k + 1:06d}.png"), gt)
+    if temporal_roi is not None:
+        (folder / "temporalROI.txt").write_text(temporal_roi + "\n")
+    if roi is not None:
+        cv2.imwrite(str(folder / "ROI.bmp"), roi)
+    return folder

@@ -16,6 +16,7 @@ from bgsub.engines import get_engine_spec
 from bgsub.evaluation.cdnet import evaluate_sequence
 from bgsub.samples import SceneSpec, generate_scene
 from bgsub.io.sinks import open_mask_sink
+from conftest import write_bins, write_gt_sequence
 
 GT = np.array([[255, 255, 0, 0, 170]] * 4, np.uint8)  # 8 positives, 8 negatives, 4 ignored
 PRED = np.array([[255, 0, 0, 0, 255]] * 4, np.uint8)  # TP 4, FN 4, TN 8
@@ -23,14 +24,8 @@ PRED = np.array([[255, 0, 0, 0, 255]] * 4, np.uint8)  # TP 4, FN 4, TN 8
 
 @pytest.fixture
 def case(tmp_path):
-    seq = tmp_path / "seq"
-    (seq / "groundtruth").mkdir(parents=True)
-    pred = tmp_path / "pred"
-    pred.mkdir()
-    for n in (1, 2):
-        cv2.imwrite(str(seq / "groundtruth" / f"gt{n:06d}.png"), GT)
-        cv2.imwrite(str(pred / f"bin{n:06d}.png"), PRED)
-    return pred, seq
+    seq = write_gt_sequence(tmp_path / "seq", {1: GT, 2: GT})
+    return write_bins(tmp_path / "pred", {1: PRED, 2: PRED}), seq
 
 
 def test_eval_text_table(case, capsys):

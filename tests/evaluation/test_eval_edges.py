@@ -13,17 +13,17 @@ from bgsub.io import flowio, sources
 from bgsub.cli import main
 from bgsub.errors import InputError
 from bgsub.evaluation.cdnet import evaluate_sequence, find_prediction, open_ground_truth
-from bgsub.io.sinks import open_mask_sink
-from test_evaluation import GT3, write_bins, write_sequence
+from conftest import write_bins, write_gt_sequence, write_input_sequence, write_mask_video
 
 # One labelled frame (4x5, two object columns) and its perfect 0/255 mask.
+GT3 = np.array([[255, 255, 0, 0, 0]] * 4, np.uint8)
 MASK = np.where(GT3 == 255, 255, 0).astype(np.uint8)
 
 
 def _case(tmp_path: Path, gt_numbers: Iterable[int], mask_numbers: Iterable[int], *,
           temporal_roi: Optional[Tuple[int, int]] = None) -> Tuple[Path, Path]:
     """A sequence with ground truth for ``gt_numbers`` and a folder of perfect masks."""
-    gt = write_sequence(tmp_path / "seq", {n: GT3 for n in gt_numbers}, temporal_roi=temporal_roi)
+    gt = write_gt_sequence(tmp_path / "seq", {n: GT3 for n in gt_numbers}, temporal_roi=temporal_roi)
     return write_bins(tmp_path / "pred", {n: MASK for n in mask_numbers}), gt
 
 
@@ -95,7 +95,7 @@ def test_eval_prints_the_bin000000_warning_once_on_one_line(tmp_path, capsys):
 ])
 def test_the_ground_truth_states_the_inputs_end_only_when_it_labels_every_frame(
         tmp_path, gt_numbers, temporal_roi, end):
-    gt = write_sequence(tmp_path / "seq", {n: GT3 for n in gt_numbers}, temporal_roi=temporal_roi)
+    gt = write_gt_sequence(tmp_path / "seq", {n: GT3 for n in gt_numbers}, temporal_roi=temporal_roi)
     assert open_ground_truth(gt).sequence_end == end
 
 
@@ -127,13 +127,6 @@ def test_masks_count_as_past_the_end_only_past_a_later_temporal_roi_end(tmp_path
     assert "up to gt000005.png, and its temporal ROI ends at frame 20)" in warning
 
 
-def _mask_video(path: Path, n_frames: int) -> Path:
-    with open_mask_sink(path, width=32, height=24, fps=25.0) as sink:
-        for k in range(n_frames):
-            sink.write(np.zeros((24, 32), np.uint8), k)
-    return path
-
-
 @pytest.mark.parametrize("gt_numbers, warned", [
     (range(1, 7), True),  # dense: 9 frames for 6 is another clip's length
     (range(2, 7, 2), False),  # every other frame: the labels stop, the clip need not
@@ -141,18 +134,17 @@ def _mask_video(path: Path, n_frames: int) -> Path:
 def test_a_longer_mask_video_is_warned_about_only_against_dense_ground_truth(tmp_path,
                                                                               gt_numbers, warned):
     blank = np.zeros((24, 32), np.uint8)
-    gt = write_sequence(tmp_path / "seq", {n: blank for n in gt_numbers})
-    result = evaluate_sequence(_mask_video(tmp_path / "m.mkv", 9), gt)
+    gt = write_gt_sequence(tmp_path / "seq", {n: blank for n in gt_numbers})
+    result = evaluate_sequence(write_mask_video(tmp_path / "m.mkv", [np.zeros((24, 32), np.uint8)] * 9), gt)
     assert result.n_frames == len(gt_numbers)
     assert [("holds 9 frames, past the end of the ground truth" in w) for w in result.warnings] \
         == ([True] if warned else [])
 
 
 def test_compare_does_not_warn_of_an_input_longer_than_sparse_ground_truth(tmp_path):
-    from test_compare import write_sequence as write_scene
     from bgsub.evaluation.compare import compare_methods
 
-    scene = write_scene(tmp_path / "famA_one", n_frames=8)
+    scene = write_input_sequence(tmp_path / "famA_one", n_frames=8)
     for n in (1, 3, 5, 7):  # labels for every other frame
         (scene / "groundtruth" / f"gt{n:06d}.png").unlink()
     (scene / "groundtruth" / "gt000008.png").unlink()  # ... up to frame 6 of 8
@@ -178,7 +170,7 @@ def test_every_video_suffix_finds_a_dataset_prediction_and_names_a_video(tmp_pat
     assert find_prediction(tmp_path, "cameraJitter/traffic") == tmp_path / "traffic.mkv"
     (tmp_path / "traffic.mkv").unlink()
     assert find_prediction(tmp_path, "cameraJitter/traffic") == tmp_path / "traffic.avi"
-    for suffix in (".mpg", ".3gp"):  # found by eval now as well as named by flowio
+    for suffix in (".mpg", ".3gp"):  # found by eval, and named videos by flowio
         only = tmp_path / suffix.strip(".")
         only.mkdir()
         (only / f"clip{suffix}").write_bytes(b"not an image")

@@ -6,7 +6,7 @@ import math
 import re
 import shutil
 from pathlib import Path
-from typing import Dict, Optional, Sequence
+from typing import Sequence
 
 import cv2
 import numpy as np
@@ -18,26 +18,7 @@ from bgsub.evaluation.cdnet import (
     find_sequences, is_uniform_scale, metrics, open_ground_truth,
 )
 from bgsub.io.sources import output_size
-
-
-def write_sequence(folder: Path, gts: Dict[int, np.ndarray], *, temporal_roi=None,
-                   roi: Optional[np.ndarray] = None) -> Path:
-    """A CDnet sequence folder: groundtruth/gtNNNNNN.png, temporalROI.txt, ROI.bmp."""
-    (folder / "groundtruth").mkdir(parents=True)
-    for number, gt in gts.items():
-        cv2.imwrite(str(folder / "groundtruth" / f"gt{number:06d}.png"), gt)
-    if temporal_roi is not None:
-        (folder / "temporalROI.txt").write_text(f"{temporal_roi[0]} {temporal_roi[1]}\n")
-    if roi is not None:
-        cv2.imwrite(str(folder / "ROI.bmp"), roi)
-    return folder
-
-
-def write_bins(folder: Path, masks: Dict[int, np.ndarray]) -> Path:
-    folder.mkdir(parents=True)
-    for number, mask in masks.items():
-        cv2.imwrite(str(folder / f"bin{number:06d}.png"), mask)
-    return folder
+from conftest import write_bins, write_gt_sequence, write_mask_video
 
 
 def u8(rows: Sequence[Sequence[int]]) -> np.ndarray:
@@ -76,7 +57,7 @@ HAND_METRICS = dict(recall=4 / 12, specificity=14 / 18, fpr=4 / 18, fnr=8 / 12,
 @pytest.fixture
 def hand_case(tmp_path):
     zeros, ones = np.zeros((4, 5), np.uint8), np.full((4, 5), 255, np.uint8)
-    gt = write_sequence(tmp_path / "cat" / "seq", {1: zeros, 2: GT2, 3: GT3, 4: zeros},
+    gt = write_gt_sequence(tmp_path / "cat" / "seq", {1: zeros, 2: GT2, 3: GT3, 4: zeros},
                         temporal_roi=(2, 3), roi=ROI)
     pred = write_bins(tmp_path / "pred", {1: ones, 2: PRED2, 3: PRED3, 4: ones})
     return pred, gt
@@ -100,7 +81,7 @@ def test_roi_bmp_can_be_ignored(hand_case):
 
 def test_without_temporal_roi_every_gt_frame_counts(tmp_path):
     zeros, ones = np.zeros((4, 5), np.uint8), np.full((4, 5), 255, np.uint8)
-    gt = write_sequence(tmp_path / "seq", {1: zeros, 2: GT2})
+    gt = write_gt_sequence(tmp_path / "seq", {1: zeros, 2: GT2})
     pred = write_bins(tmp_path / "pred", {1: ones, 2: PRED2})
     # Frame 1: 20 FP. Frame 2 over all 5 columns: TP 3, FP 3, FN 3, TN 8 (2 pixels ignored).
     assert evaluate_sequence(pred, gt).counts == Counts(tp=3, fp=23, fn=3, tn=8)
@@ -108,7 +89,7 @@ def test_without_temporal_roi_every_gt_frame_counts(tmp_path):
 
 def test_sparse_ground_truth_is_scored_where_it_exists_and_said_so(tmp_path):
     ones = np.full((4, 5), 255, np.uint8)
-    gt = write_sequence(tmp_path / "seq", {1: GT2, 3: GT2, 4: GT2})  # no label for frame 2
+    gt = write_gt_sequence(tmp_path / "seq", {1: GT2, 3: GT2, 4: GT2})  # no label for frame 2
     pred = write_bins(tmp_path / "pred", {1: PRED2, 2: ones, 3: PRED2, 4: PRED2})
     result = evaluate_sequence(pred, gt)
     assert result.n_frames == 3 and (result.first_frame, result.last_frame) == (1, 4)
@@ -130,7 +111,7 @@ def test_frame_restrictions(hand_case):
 
 def test_skip_first_leaves_out_frame_1(tmp_path):
     zeros, ones = np.zeros((4, 5), np.uint8), np.full((4, 5), 255, np.uint8)
-    gt = write_sequence(tmp_path / "seq", {1: zeros, 2: GT2})
+    gt = write_gt_sequence(tmp_path / "seq", {1: zeros, 2: GT2})
     pred = write_bins(tmp_path / "pred", {1: ones, 2: PRED2})
     result = evaluate_sequence(pred, gt, skip_first=True)
     assert (result.n_frames, result.first_frame) == (1, 2)
@@ -169,14 +150,14 @@ def test_count_frame_matches_independent_numpy():
 def test_values_other_than_cdnet_labels_rejected(tmp_path):
     bad = GT2.copy()
     bad[0, 0] = 128
-    gt = write_sequence(tmp_path / "seq", {1: bad})
+    gt = write_gt_sequence(tmp_path / "seq", {1: bad})
     pred = write_bins(tmp_path / "pred", {1: PRED2})
     with pytest.raises(InputError, match=r"gt000001\.png.*\[128\]"):
         evaluate_sequence(pred, gt)
 
 
 def test_colour_ground_truth_with_equal_channels_accepted(tmp_path):
-    gt = write_sequence(tmp_path / "seq", {2: cv2.cvtColor(GT2, cv2.COLOR_GRAY2BGR)})
+    gt = write_gt_sequence(tmp_path / "seq", {2: cv2.cvtColor(GT2, cv2.COLOR_GRAY2BGR)})
     pred = write_bins(tmp_path / "pred", {2: PRED2})
     assert evaluate_sequence(pred, gt).counts == Counts(tp=3, fp=3, fn=3, tn=8)
 
@@ -193,7 +174,7 @@ def test_missing_frame_reported(hand_case):
 
 
 def test_size_mismatch_names_both_sizes(tmp_path):
-    gt = write_sequence(tmp_path / "seq", {1: GT2})
+    gt = write_gt_sequence(tmp_path / "seq", {1: GT2})
     # 10x4 is no scale of 5x4 (7x6 would be: 5x4 times 1.4, rounded).
     pred = write_bins(tmp_path / "pred", {1: np.zeros((4, 10), np.uint8)})
     with pytest.raises(InputError, match=r"10x4.*5x4"):
@@ -219,7 +200,7 @@ def test_prediction_at_a_scale_of_the_ground_truth_is_scaled_back(tmp_path):
     labels = {n: rng.choice(np.array([0, 50, 170, 255], np.uint8), size=(24, 32))
               for n in (1, 2)}
     half = {n: np.where(rng.random((12, 16)) > 0.5, 255, 0).astype(np.uint8) for n in (1, 2)}
-    gt = write_sequence(tmp_path / "seq", labels)
+    gt = write_gt_sequence(tmp_path / "seq", labels)
     pred = write_bins(tmp_path / "pred", half)
     # Nearest neighbour at exactly twice the size: every pixel becomes a 2x2 block.
     full = {n: m.repeat(2, axis=0).repeat(2, axis=1) for n, m in half.items()}
@@ -230,7 +211,7 @@ def test_prediction_at_a_scale_of_the_ground_truth_is_scaled_back(tmp_path):
 
 
 def test_roi_bmp_of_wrong_size(tmp_path):
-    gt = write_sequence(tmp_path / "seq", {1: GT2}, roi=np.full((4, 6), 255, np.uint8))
+    gt = write_gt_sequence(tmp_path / "seq", {1: GT2}, roi=np.full((4, 6), 255, np.uint8))
     pred = write_bins(tmp_path / "pred", {1: PRED2})
     with pytest.raises(InputError, match=r"ROI\.bmp is 6x4.*5x4.*--no-roi-bmp"):
         evaluate_sequence(pred, gt)
@@ -245,7 +226,7 @@ def _video_case(tmp_path, n_video_frames: int):
     gts = {n: rng.choice(np.array([0, 50, 170, 255], np.uint8), size=(24, 32)) for n in range(1, 7)}
     preds = {n: np.where(rng.random((24, 32)) > 0.5, 255, 0).astype(np.uint8)
              for n in range(1, 7)}
-    gt = write_sequence(tmp_path / "seq", gts, temporal_roi=(2, 6))
+    gt = write_gt_sequence(tmp_path / "seq", gts, temporal_roi=(2, 6))
     video = tmp_path / "masks.mkv"
     with open_mask_sink(video, width=32, height=24, fps=25.0) as sink:
         for n in range(1, n_video_frames + 1):
@@ -284,7 +265,7 @@ def _ranged_video(tmp_path, indices: Sequence[int]):
     numbers = range(1, 11)
     gts = {n: rng.choice(np.array([0, 50, 170, 255], np.uint8), size=(24, 32)) for n in numbers}
     preds = {n: np.where(rng.random((24, 32)) > 0.5, 255, 0).astype(np.uint8) for n in numbers}
-    gt = write_sequence(tmp_path / "seq", gts)
+    gt = write_gt_sequence(tmp_path / "seq", gts)
     video = tmp_path / "masks.mkv"
     with open_mask_sink(video, width=32, height=24, fps=25.0) as sink:
         for index in indices:
@@ -331,7 +312,7 @@ def test_a_folder_range_selects_the_frames_bgsub_run_read(tmp_path):
 
 def _ten_frames(tmp_path, numbers):
     """GT frames 1-10 (GT3) and a folder of perfect masks of ``numbers`` only."""
-    gt = write_sequence(tmp_path / "seq", {n: GT3 for n in range(1, 11)})
+    gt = write_gt_sequence(tmp_path / "seq", {n: GT3 for n in range(1, 11)})
     return write_bins(tmp_path / "pred", {n: GT3 for n in numbers}), gt
 
 
@@ -476,7 +457,7 @@ def test_dataset_averaging_the_cdnet_way(tmp_path):
         "catB/three": u8([[255, 0, 0, 0], [0, 0, 0, 0]]),
     }
     for rel, pred in cases.items():
-        write_sequence(gt_root / rel, {1: gt})
+        write_gt_sequence(gt_root / rel, {1: gt})
         write_bins(pred_root / Path(rel).name, {1: pred})
     result = evaluate(pred_root, gt_root)
     assert [s.name for s in result.sequences] == ["one", "two", "three"]
@@ -490,8 +471,8 @@ def test_dataset_averaging_the_cdnet_way(tmp_path):
 def test_dataset_finds_mirrored_layout_and_videos(tmp_path):
     gt_root, pred_root = tmp_path / "gt", tmp_path / "pred"
     gt = np.zeros((16, 16), np.uint8)
-    write_sequence(gt_root / "a" / "deep" / "seq", {1: gt})
-    write_sequence(gt_root / "fam_x", {1: gt})
+    write_gt_sequence(gt_root / "a" / "deep" / "seq", {1: gt})
+    write_gt_sequence(gt_root / "fam_x", {1: gt})
     write_bins(pred_root / "a" / "deep" / "seq", {1: gt})
     write_bins(pred_root / "fam_x", {1: gt})
     assert [p.name for p in find_sequences(gt_root)] == ["seq", "fam_x"]
@@ -501,8 +482,8 @@ def test_dataset_finds_mirrored_layout_and_videos(tmp_path):
 
 def test_dataset_missing_sequence_prediction(tmp_path):
     gt_root, pred_root = tmp_path / "gt", tmp_path / "pred"
-    write_sequence(gt_root / "c" / "s1", {1: GT3})
-    write_sequence(gt_root / "c" / "s2", {1: GT3})
+    write_gt_sequence(gt_root / "c" / "s1", {1: GT3})
+    write_gt_sequence(gt_root / "c" / "s2", {1: GT3})
     write_bins(pred_root / "s1", {1: GT3})
     with pytest.raises(InputError, match=r"1 of 2 sequences \(c/s2\)"):
         evaluate_dataset(pred_root, gt_root)
@@ -559,7 +540,7 @@ def test_python_bool_masks_and_bad_dtype(hand_case):
 
 
 def test_a_temporal_roi_that_is_a_folder_is_an_error_not_ignored(tmp_path):
-    gt = write_sequence(tmp_path / "seq", {1: np.zeros((4, 5), np.uint8)})
+    gt = write_gt_sequence(tmp_path / "seq", {1: np.zeros((4, 5), np.uint8)})
     (gt / "temporalROI.txt").mkdir()
     with pytest.raises(InputError, match=r"temporalROI\.txt is not a file"):
         open_ground_truth(gt)
@@ -572,8 +553,8 @@ def test_a_sequence_without_prediction_counts_only_the_frames_the_videos_hold(tm
 
     gt_root, pred_root = tmp_path / "gt", tmp_path / "pred"
     labels = {n: np.full((16, 16), 255, np.uint8) for n in range(1, 9)}
-    write_sequence(gt_root / "c" / "s1", labels)
-    write_sequence(gt_root / "c" / "s2", labels)
+    write_gt_sequence(gt_root / "c" / "s1", labels)
+    write_gt_sequence(gt_root / "c" / "s2", labels)
     pred_root.mkdir()
     with open_mask_sink(pred_root / "s1.mkv", width=16, height=16, fps=25.0) as sink:
         for index in range(0, 8, 2):
@@ -586,7 +567,7 @@ def test_a_sequence_without_prediction_counts_only_the_frames_the_videos_hold(tm
 
 @pytest.mark.parametrize("pred, gt", [("", "seq"), ("pred", "")])
 def test_an_empty_path_is_refused_not_read_as_the_current_folder(tmp_path, pred, gt):
-    write_sequence(tmp_path / "seq", {1: GT2})
+    write_gt_sequence(tmp_path / "seq", {1: GT2})
     write_bins(tmp_path / "pred", {1: PRED2})
     pred = str(tmp_path / pred) if pred else pred
     gt = str(tmp_path / gt) if gt else gt
@@ -611,25 +592,15 @@ def test_first_frame_after_last_frame_says_so(hand_case):
     assert evaluate_sequence(pred, gt, first_frame=3, last_frame=3).n_frames == 1
 
 
-def _mask_video(path: Path, masks: Sequence[np.ndarray]) -> Path:
-    from bgsub.io.sinks import open_mask_sink
-
-    h, w = masks[0].shape
-    with open_mask_sink(path, width=w, height=h, fps=25.0) as sink:
-        for k, mask in enumerate(masks):
-            sink.write(mask, k)
-    return path
-
-
 def _compare_report(tmp_path):
     """A sequence (frames 1-2 of 16x16) and the layout `bgsub compare` writes for it: one
     mask set per method, a .mkv for "good" (perfect) and a bin png folder for "empty"."""
     gt_frame = np.zeros((16, 16), np.uint8)
     gt_frame[4:12, 4:12] = 255
-    gt = write_sequence(tmp_path / "scenes" / "pan_s0", {1: gt_frame, 2: gt_frame})
+    gt = write_gt_sequence(tmp_path / "scenes" / "pan_s0", {1: gt_frame, 2: gt_frame})
     report = tmp_path / "cmp" / "pan_s0"
     report.mkdir(parents=True)
-    _mask_video(report / "good.mkv", [gt_frame, gt_frame])
+    write_mask_video(report / "good.mkv", [gt_frame, gt_frame])
     write_bins(report / "empty", {1: 0 * gt_frame, 2: 0 * gt_frame})
     (report.parent / "report.txt").write_text("")
     return report, gt
@@ -650,7 +621,7 @@ def test_a_compare_report_folder_is_refused_saying_what_it_holds(tmp_path):
     ({"in000001.jpg": b"x", "notes.txt": b"y"}, "(none of its 2 files and folders is one)"),
 ])
 def test_a_folder_without_masks_says_what_it_holds(tmp_path, content, words):
-    gt = write_sequence(tmp_path / "seq", {1: GT3})
+    gt = write_gt_sequence(tmp_path / "seq", {1: GT3})
     folder = tmp_path / "pred"
     folder.mkdir()
     for name, data in content.items():
@@ -660,7 +631,7 @@ def test_a_folder_without_masks_says_what_it_holds(tmp_path, content, words):
 
 
 def test_masks_numbered_from_1_for_later_frames_hint_at_the_numbering(tmp_path):
-    gt = write_sequence(tmp_path / "seq", {n: GT3 for n in range(20, 23)})
+    gt = write_gt_sequence(tmp_path / "seq", {n: GT3 for n in range(20, 23)})
     # What `bgsub run 'input/in00002*.jpg'` writes: the same frames, numbered from 1.
     pred = write_bins(tmp_path / "pred", {n: GT3 for n in range(1, 4)})
     with pytest.raises(InputError) as caught:
@@ -713,7 +684,7 @@ def test_a_method_no_sequence_has_is_refused_naming_those_there(tmp_path, allow_
 
 def test_a_method_some_sequences_lack_can_be_counted_as_background(tmp_path):
     report, gt = _compare_report(tmp_path)
-    other = write_sequence(gt.parent / "static_s0", {1: np.zeros((16, 16), np.uint8)})
+    other = write_gt_sequence(gt.parent / "static_s0", {1: np.zeros((16, 16), np.uint8)})
     write_bins(report.parent / other.name / "empty", {1: np.zeros((16, 16), np.uint8)})
     with pytest.raises(InputError, match=r"no prediction of method 'good' in .* for 1 of 2 "
                                          r"sequences .*static_s0.*--allow-missing"):

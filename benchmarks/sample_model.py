@@ -1,13 +1,13 @@
-"""Diagnostic (issue 4, UCSD): the `grbm` pipeline with a sample-based background model.
+"""Diagnostic (UCSD): the `grbm` pipeline with a warped sample-based background model.
 
 SuBSENSE, the reference row that sets UCSD's bar, is built on a ViBe-style sample model: each
 pixel keeps N past values and is background when at least ``min_matches`` of them lie within
 ``radius`` gray levels. This script swaps such a model (nearest-neighbour warped by the camera
 motion, conservative random update with neighbour diffusion) in for `CompensatedBackground`
 and runs `benchmarks/pipeline_real.py` with it, to measure whether the background model is what
-keeps UCSD below its bar (see docs/BENCHMARKS.md, tenth stop). Kept as it was to reproduce
-those figures: the engines' own sample model, :class:`bgsub.background.foreground.SampleBackground`
-(eleventh stop), is never warped and is used only while the camera is judged still.
+limits UCSD (docs/BENCHMARKS.md, "Tried and rejected"). The engines' own sample model,
+:class:`bgsub.background.foreground.SampleBackground`, differs: it is never warped and is used
+only while the camera is judged still.
 
 Usage (minutes; one thread)::
 

@@ -276,7 +276,7 @@ def _shifted_pair(tmp_path, shift, size=(240, 320)):
 
 def test_max_motion_is_read_on_frames_too_small_for_its_pyramid(tmp_path, capsys):
     # 320x240 allows 3 pyramid levels, which read about 12 px alone: --max-motion widens the
-    # coarsest level's search instead (before: 20 px read as about (-3, -3)).
+    # coarsest level's search instead (without that search, 20 px reads as about (-3, -3)).
     p1, p2 = _shifted_pair(tmp_path, (20, 0))
     out = tmp_path / "f.flo"
     assert main(["flow", str(p1), str(p2), "-o", str(out), "--max-motion", "24", "-q"]) == 0

@@ -408,7 +408,7 @@ def test_methods_lists_the_default_engine_first(capsys):
     assert first.startswith("grbm (default):")
 
 
-# --- refusals and notes added after a user test -----------------------------------------------
+# --- outputs that would clash with the input, empty names, summaries, truncated videos -------
 
 
 def _image_folder(folder: Path, n: int = 4) -> Path:

@@ -269,7 +269,7 @@ def test_analogy_images_reads_uint8_images_as_gray_levels(shift_model):
     expected = analogy_images(shift_model, x, y, x2)
     as_uint8 = [(im * 255).astype(np.uint8) for im in (x, y, x2)]
     out = analogy_images(shift_model, *as_uint8)
-    assert out.min() < 0.5  # not the blank (all 1.0) image uint8 used to give
+    assert out.min() < 0.5  # uint8 input is scaled to [0, 1]: not a blank (all 1.0) image
     np.testing.assert_allclose(out, expected, atol=1e-4)
 
 

@@ -208,7 +208,7 @@ def test_absurd_learning_rate_stops_with_a_clear_error():
                                     dict(sparsity_cost=float("nan")), dict(sparsity_cost=-1.0),
                                     dict(seed=-1)])
 def test_settings_that_cannot_work_are_refused_before_training(change):
-    # NaN weight decay used to train and then report a misleading "diverged".
+    # NaN weight decay would train and then report a misleading "diverged".
     with pytest.raises(InputError):
         _small_config(**change).check()
 

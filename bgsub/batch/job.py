@@ -87,7 +87,8 @@ class JobResult:
 
     @property
     def fps(self) -> float:
-        """Frames per second of the job's frame loop (0 when none was processed)."""
+        """Frames per second over the whole job (opening the input, building the engine,
+        the frames, closing the outputs); 0 when no frame was processed."""
         return self.frames / self.seconds if self.seconds > 0 else 0.0
 
     def to_dict(self) -> Dict[str, Any]:
@@ -162,8 +163,9 @@ def _process(job: RunJob, loop_stats: List[Any], should_stop: Optional[StopCheck
 def run_input(job: RunJob, should_stop: Optional[StopCheck] = None) -> JobResult:
     """Make the outputs of one input; see the module's docstring.
 
-    ``should_stop`` is checked after every frame: when it says so, the outputs are closed
-    partial-but-valid and the result is ``interrupted`` (so is Ctrl-C in this process).
+    ``should_stop`` is asked before the job opens anything (``not started`` when it says so)
+    and before each frame is written: then the outputs are closed partial-but-valid and the
+    result is ``interrupted`` (so is Ctrl-C in this process).
     """
     from bgsub.batch.threads import limit_opencv
 

@@ -57,6 +57,9 @@ import numpy as np
 
 from bgsub.errors import InputError, OutputError
 
+#: The file name of the bundled sample: the ``pan`` scene of seed 0 as a video.
+BUNDLED_SAMPLE = "pan.mp4"
+
 #: The scene categories and what their camera does.
 CATEGORIES: Dict[str, str] = {
     "static": "camera still (the case classical background subtraction is built for)",
@@ -538,6 +541,45 @@ def render_frames(spec: SceneSpec, *, include_objects: bool = True) -> Iterator[
         view += np.float32(spec.noise_sigma) * noise
         image = np.clip(np.rint(view), 0, 255).astype(np.uint8)
         yield SceneFrame(image, gt, motion[k].copy())
+
+
+def bundled_sample() -> Path:
+    """The path of the bundled sample video ``pan.mp4`` (320x240, 120 frames, 25 fps: the
+    ``pan`` scene of seed 0), installed as the package data ``bgsub.data``."""
+    from importlib import resources
+
+    try:
+        folder = resources.files("bgsub.data")
+    except ModuleNotFoundError:
+        # A source checkout that was never pip-installed: samples/ sits beside bgsub/.
+        folder = Path(__file__).resolve().parents[1] / "samples"
+    path = Path(str(folder.joinpath(BUNDLED_SAMPLE)))
+    if not path.is_file():
+        raise InputError(f"the bundled sample {BUNDLED_SAMPLE} is not installed (no {path}); "
+                         "`bgsub samples DIR --category pan --seed 0` writes the same video")
+    return path
+
+
+def copy_bundled_sample(out_dir: Union[str, os.PathLike], *, overwrite: bool = False) -> Path:
+    """Copy the bundled sample (:func:`bundled_sample`) to ``out_dir/pan.mp4`` and return that
+    path; :class:`OutputError` when it exists (without ``overwrite``) or cannot be written."""
+    source = bundled_sample()
+    folder = Path(out_dir)
+    target = folder / BUNDLED_SAMPLE
+    if folder.exists() and not folder.is_dir():
+        raise OutputError(f"{folder} exists and is not a folder")
+    if target.exists() and not overwrite:
+        raise OutputError(f"{target} already exists (use --overwrite to replace it)")
+    if target.exists() and target.resolve() == source.resolve():
+        return target  # the checkout's own samples/pan.mp4: nothing to copy
+    partial = folder / f".{BUNDLED_SAMPLE}.partial"  # renamed when whole
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(source, partial)
+        os.replace(partial, target)
+    except OSError as err:
+        raise OutputError(f"cannot write {target}: {err.strerror or err}") from None
+    return target
 
 
 def check_video_size(width: int, height: int) -> None:

@@ -74,6 +74,24 @@ def model_path():
     return _NATURAL["m"]
 
 
+def random_texture(h, w, seed=0):
+    """A smooth random texture: ``(h + 8, w + 8) uint8`` (crop it to ``[:h, :w]``)."""
+    import cv2
+
+    rng = np.random.default_rng(seed)
+    img = rng.random((h // 4 + 1, w // 4 + 1)).astype(np.float32)
+    img = cv2.resize(img, (w + 8, h + 8), interpolation=cv2.INTER_CUBIC)
+    return (np.clip(img, 0, 1) * 255).astype(np.uint8)
+
+
+def shifted(img, dx, dy, h, w):
+    """``img`` moved by ``(dx, dy)`` px (bilinear, edges reflected), cropped to ``(h, w)``."""
+    import cv2
+
+    m = np.float32([[1, 0, dx], [0, 1, dy]])
+    return cv2.warpAffine(img, m, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+
+
 # --------------------------------------------------------------------------------------------
 # Small CDnet sequences and predictions on disk (evaluation and compare tests)
 # --------------------------------------------------------------------------------------------

@@ -330,7 +330,7 @@ def test_cli_help_examples_keep_a_gap_before_their_comment(capsys):
         main(["samples", "--help"])
     examples = capsys.readouterr().out.split("examples:\n")[1].splitlines()
     commented = [line for line in examples if "   " in line.strip()]
-    assert len(commented) == 3
+    assert len(commented) == 4
     # Every comment starts in the same column, after at least two spaces.
     starts = {len(line) - len(line.split("   ")[-1].lstrip()) for line in commented}
     assert len(starts) == 1

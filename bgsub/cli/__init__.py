@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import importlib
 import itertools
 import os
@@ -46,6 +47,7 @@ _COMMANDS = (
 
 _EPILOG = """\
 examples:
+  bgsub samples --pan                                 copy the bundled sample to samples/pan.mp4
   bgsub run samples/pan.mp4 -o pan_masks.mkv          foreground masks of the bundled sample
   bgsub run clip.mp4 -o masks/ --method mog2          CDnet-style binNNNNNN.png masks, OpenCV MOG2
   bgsub eval masks/ path/to/cdnet/sequence            the seven CDnet 2014 metrics
@@ -197,8 +199,33 @@ def main(argv: Optional[List[str]] = None) -> int:
         return 130
 
 
+#: The modules every command needs, and the distributions that install them.
+_DEPENDENCIES = {"cv2": "opencv-python-headless", "numpy": "numpy", "tqdm": "tqdm"}
+
+
+def _dependency_error() -> Optional[str]:
+    """The one-line message for a dependency that is missing or fails to import (an OpenCV
+    wheel for another platform, a missing system library), or None when every one imports."""
+    for module, distribution in _DEPENDENCIES.items():
+        try:
+            importlib.import_module(module)
+        except Exception as err:  # a broken install raises anything at import
+            reason = str(err).splitlines()[0] if str(err) else type(err).__name__
+            return (f"cannot import {module} ({reason}): bgsub needs {distribution}; install "
+                    f"or reinstall it with `python -m pip install --force-reinstall "
+                    f"{distribution}`")
+    return None
+
+
 def _main(argv: Optional[List[str]]) -> int:
-    parser = build_parser()
+    try:
+        parser = build_parser()  # imports every sub-command, and so numpy and OpenCV
+    except ImportError:
+        message = _dependency_error()
+        if message is None:
+            raise
+        print(f"bgsub: error: {message}", file=sys.stderr)
+        return 1
     _check_leading_options(parser, sys.argv[1:] if argv is None else list(argv))
     args, extra = parser.parse_known_args(argv)
     if extra:  # named by the command's parser, whose --help lists what it takes
@@ -225,12 +252,13 @@ def _main(argv: Optional[List[str]]) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
     except OSError as err:
-        # The environment, not a bug: a full disk, a stdout that cannot be written.
+        # The environment, not a bug: a full disk, a stdout that cannot be written. A name
+        # longer than the file system takes is the user's to shorten: exit 2, as for OutputError.
         where = f" ({err.filename})" if err.filename else ""
         print(f"bgsub: error: {err.strerror or err}{where}", file=sys.stderr)
         with contextlib.suppress(OSError):  # the final flush of a full stdout must not fail again
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return 1
+        return 2 if err.errno == errno.ENAMETOOLONG else 1
     except Exception as err:  # a bug: say so in one line unless asked for the traceback
         if os.environ.get("BGSUB_DEBUG"):
             raise

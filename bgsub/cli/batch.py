@@ -180,6 +180,11 @@ def dispatch(args: argparse.Namespace, *, method: str, params: dict) -> Optional
     if args.summary:
         check_file_output(args.summary, overwrite=True)
     if inputs.is_batch(args.input):
+        for flag, value in (("--objects", getattr(args, "objects", None)),
+                            ("--json", getattr(args, "json", False))):
+            if value:
+                raise InputError(f"{flag} is for a single input; a batch writes --summary "
+                                 "FILE.json")
         return run_batch(args, method=method, params=params)
     for flag, value in (("--scheduler", args.scheduler), ("--summary", args.summary)):
         if value:

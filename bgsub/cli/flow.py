@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 from pathlib import Path
 from typing import Any, List, Optional, Tuple
@@ -10,9 +11,10 @@ from typing import Any, List, Optional, Tuple
 import numpy as np
 
 from bgsub.cli.common import (add_output_options, add_source_options, check_distinct,
-                              model_files, note, progress, source_kwargs, warn,
+                              is_binary_model, model_files, note, progress, source_kwargs, warn,
                               warn_if_binary_model, warn_if_binary_model_on_source)
 from bgsub.errors import InputError, OutputError
+from bgsub.motion.config import FlowConfig
 
 _DESCRIPTION = """\
 Estimate the motion between two images with a gated RBM (default: the shipped `natural` model,
@@ -25,6 +27,12 @@ camera motion pre-warps the next level).
 With one input that is a video, an image folder or a glob, writes a video of the colour-coded
 flow of every consecutive frame pair instead.
 
+Two readouts (--readout): "patch" reads one displacement per patch on an image pyramid (camera
+motion fitted coarse to fine), for photographs and video; "max-flow" is the paper's max-flow
+field (Algorithm 2): each pixel's strongest outgoing connection in the patch pair around it,
+one level, no fitting. The random-dot models (dots-translation, dots-rotation, ...) read
+random-dot images with max-flow by default, as the paper does; other models with patch.
+
 Colour code (Middlebury): hue = direction (right red, down yellow, left cyan, up blue/violet),
 saturation = speed (white = still), black = unknown."""
 
@@ -33,12 +41,16 @@ examples:
   bgsub flow frame10.png frame11.png -o flow.flo
   bgsub flow frame10.png frame11.png -o flow.flo --vis flow.png
   bgsub flow a.jpg b.jpg -o ab.flo --vis ab_arrows.png --arrows --arrow-step 12
-  bgsub flow a.png b.png -o ab.flo --model dots-translation-3px
+  bgsub flow dots_a.png dots_b.png -o ab.flo --model dots-translation
+  bgsub flow dots_a.png dots_b.png -o ab.flo --model dots-rotation --vis ab.png --arrows
   bgsub flow clip.mp4 -o clip_flow.mp4 --max-motion 30 --stop 100
 """
 
 _PICTURE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp"}
 _ARROW_STEP = 16  # default of --arrow-step
+# The reader's settings are the grbm engine's (FlowConfig's defaults); the options replace some.
+_FLOW = FlowConfig()
+_READOUTS = ("patch", "max-flow")
 
 
 def register(subparsers: Any) -> None:
@@ -68,15 +80,21 @@ def register(subparsers: Any) -> None:
                         help="shipped model name (natural, dots-translation, ...) or a .npz path "
                              "(default: natural)")
     est = parser.add_argument_group("estimation")
-    est.add_argument("--max-motion", type=float, default=20.0, metavar="PX",
+    est.add_argument("--readout", choices=_READOUTS, default=None,
+                     help="patch: patch displacements on an image pyramid; max-flow: the "
+                          "paper's per-pixel max-flow field, one level (default: max-flow for "
+                          "random-dot models, else patch)")
+    est.add_argument("--max-motion", type=float, default=None, metavar="PX",
                      help="largest motion to expect, above 0; plans the pyramid and, on frames "
                           "too small for the levels it needs, widens the coarsest search "
-                          "(slower) (default 20)")
+                          f"(slower) (default {_FLOW.max_motion:g}; patch readout)")
     est.add_argument("--levels", type=int, default=None, metavar="N",
                      help="pyramid levels, at least 1 (default: enough for --max-motion; "
-                          "1 = no pyramid)")
-    est.add_argument("--stride", type=int, default=6, metavar="PX",
-                     help="patch grid step, at least 1 (default 6; smaller = finer field, slower)")
+                          "1 = no pyramid; patch readout)")
+    est.add_argument("--stride", type=int, default=None, metavar="PX",
+                     help="patch grid step, at least 1 (at most the patch size with max-flow) "
+                          f"(default {_FLOW.stride}, or the patch size if smaller; smaller = finer "
+                          "field, slower)")
     add_source_options(parser)
     add_output_options(parser, quiet_help="no progress bar and no notes on stderr (warnings "
                                           "and errors are still printed)")
@@ -89,11 +107,43 @@ def run(args: argparse.Namespace) -> int:
     _check_options(args)
     if args.frame2 is None:
         _check_video_output(args)
-        model = load_model(args.model)
-        return _run_video(args, model)
-    _check_pair_outputs(args)
+    else:
+        _check_pair_outputs(args)
     model = load_model(args.model)
-    return _run_pair(args, model)
+    _choose_readout(args, model)
+    return _run_video(args, model) if args.frame2 is None else _run_pair(args, model)
+
+
+def _choose_readout(args: argparse.Namespace, model: Any) -> None:
+    """Settle ``args.readout`` for ``model`` and refuse the options it would ignore.
+
+    A random-dot model (binary output units) is read with max-flow by default: the paper's
+    readout, and the only one it was made for. Its pyramid levels would be blurred dots, gray
+    values such a model never saw, and its range is a pixel or so, at the edge of which the
+    patch readout takes a reading for a larger motion clipped."""
+    if args.readout is None:
+        args.readout = "max-flow" if is_binary_model(model) else "patch"
+    if args.stride is None:
+        args.stride = min(_FLOW.stride, int(model.patch_size))
+    if args.readout == "patch":
+        if is_binary_model(model):
+            # One level, and motions within the model's range (readings at its edge kept).
+            from bgsub.motion.flowfield import model_range
+
+            args.levels = 1 if args.levels is None else args.levels
+            if args.max_motion is None:
+                args.max_motion = float(model_range(model))
+        elif args.max_motion is None:
+            args.max_motion = _FLOW.max_motion
+        return
+    planned = [flag for flag, value in (("--max-motion", args.max_motion),
+                                        ("--levels", args.levels)) if value is not None]
+    if planned:
+        raise InputError(f"{', '.join(planned)}: plan the pyramid of --readout patch; "
+                         "--readout max-flow reads one level")
+    if args.stride > model.patch_size:
+        raise InputError(f"--stride {args.stride}: --readout max-flow needs a step of at most "
+                         f"the model's patch size {model.patch_size} (every pixel in a patch)")
 
 
 # The checks below raise InputError rather than using argparse `type=` functions: argparse would
@@ -103,11 +153,12 @@ def _check_options(args: argparse.Namespace) -> None:
     """Refuse option values and combinations that would fail late or be silently ignored."""
     if args.arrow_step < 2:
         raise InputError(f"--arrow-step must be at least 2, not {args.arrow_step}")
-    if args.stride < 1:
+    if args.stride is not None and args.stride < 1:
         raise InputError(f"--stride must be at least 1, not {args.stride}")
     if args.levels is not None and args.levels < 1:
         raise InputError(f"--levels must be at least 1 (1 = no pyramid), not {args.levels}")
-    _check_positive("--max-motion", args.max_motion)
+    if args.max_motion is not None:
+        _check_positive("--max-motion", args.max_motion)
     if args.max_magnitude is not None:
         _check_positive("--max-magnitude", args.max_magnitude)
     if args.frame2 is None:
@@ -164,16 +215,18 @@ _MAX_SEARCH = 8
 
 def _search_for(shape: Tuple[int, int], model: Any, args: argparse.Namespace) -> int:
     """The grid of coarsest-level starts that lets the pyramid a frame of ``shape`` (H, W)
-    allows read --max-motion: small frames allow fewer levels than it needs (0 when the levels
-    reach it alone, or with --levels)."""
+    allows read --max-motion: small frames allow fewer levels than it needs (FlowConfig's
+    default when the levels reach it alone, or with --levels; 0 with one level)."""
     from bgsub.motion.flowfield import model_range, pyramid_reach
 
     if args.levels is not None:
-        return 0
+        return _FLOW.search
     # The pyramid estimate_flow plans for the same frame, model and --max-motion.
     pyramid = pyramid_reach(shape, max_motion=args.max_motion, model_disp=model_range(model),
                             patch_size=int(model.patch_size))
     search = pyramid.search_for(args.max_motion, limit=_MAX_SEARCH)
+    if pyramid.levels > 1:  # (one level reads no grid of starts)
+        search = max(_FLOW.search, search)
     reach = pyramid.reach(search)
     if reach < args.max_motion and not getattr(args, "reach_warned", False):
         warn(f"--max-motion {args.max_motion:g} is beyond what {shape[1]}x{shape[0]} frames "
@@ -183,13 +236,22 @@ def _search_for(shape: Tuple[int, int], model: Any, args: argparse.Namespace) ->
 
 
 def _estimate(frame1: np.ndarray, frame2: np.ndarray, model: Any, args: argparse.Namespace,
-              prior: Optional[np.ndarray] = None):
+              prior: Optional[np.ndarray] = None) -> Tuple[np.ndarray, Optional[np.ndarray]]:
+    """The flow from ``frame1`` to ``frame2`` with ``args.readout``: ``(dense, prewarp)``, the
+    ``(H, W, 2) float32`` field (NaN unknown) and the camera motion to start the next pair
+    from (None with max-flow, which fits none)."""
+    if args.readout == "max-flow":
+        from bgsub.model.readout import max_flow_image
+
+        return max_flow_image(model, frame1, frame2, stride=args.stride), None
     from bgsub.motion.flowfield import estimate_flow
 
     search = _search_for(frame1.shape[:2], model, args)  # (says it in CLI words: warn_range off)
-    return estimate_flow(frame1, frame2, model=model, stride=args.stride, levels=args.levels,
-                         max_motion=args.max_motion, prior=prior, search=search, dense=True,
-                         warn_range=False)
+    config = dataclasses.replace(_FLOW, stride=args.stride, levels=args.levels or 0,
+                                 max_motion=args.max_motion, search=search, dense=True,
+                                 warn_range=False)
+    estimate = estimate_flow(frame1, frame2, config, model=model, prior=prior)
+    return estimate.dense, estimate.prewarp
 
 
 def _check_pair_outputs(args: argparse.Namespace) -> None:
@@ -218,8 +280,7 @@ def _run_pair(args: argparse.Namespace, model: Any) -> int:
         raise InputError(f"images differ in size: {args.input} is {w}x{h}, {args.frame2} is {w2}x{h2}")
     _check_patch_fits(model, w, h, f"{args.input} is")
     warn_if_binary_model(model, frame1, what=args.input)
-    estimate = _estimate(frame1, frame2, model, args)
-    flow = estimate.dense
+    flow, _ = _estimate(frame1, frame2, model, args)
     write_flo(args.output, flow, overwrite=args.overwrite)
     if args.vis is not None:
         picture = flow_picture(flow, image=frame1, arrows=args.arrows, step=args.arrow_step,
@@ -269,9 +330,9 @@ def _run_video(args: argparse.Namespace, model: Any) -> int:
                        overwrite=args.overwrite) as sink:
             for _, frame in progress(source, total=info.frame_count, desc="flow", quiet=args.quiet):
                 if previous is not None:
-                    estimate = _estimate(previous, frame, model, args, prior=prior)
-                    prior = estimate.prewarp  # the camera rarely changes motion abruptly
-                    sink.write(flow_picture(estimate.dense, image=previous, arrows=args.arrows,
+                    # The camera rarely changes motion abruptly: the next pair starts from it.
+                    dense, prior = _estimate(previous, frame, model, args, prior=prior)
+                    sink.write(flow_picture(dense, image=previous, arrows=args.arrows,
                                             step=args.arrow_step, max_magnitude=args.max_magnitude))
                     written += 1
                 previous = frame

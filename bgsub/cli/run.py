@@ -13,7 +13,7 @@ import shlex
 from typing import Any, List, Optional
 
 from bgsub import engines
-from bgsub.cli import batch, common
+from bgsub.cli import batch, common, run_extras
 from bgsub.errors import InputError
 from bgsub.evaluation.cdnet import VideoFrames
 from bgsub.io.loop import FrameLoop, RunStats
@@ -28,7 +28,8 @@ from bgsub.io.sinks import (
     open_mask_sink,
 )
 from bgsub.io.sources import FrameSource, VideoInfo, open_source
-from bgsub.io.writers import DebugImageWriter, MaskWriter, MotionWriter, ProgressBar, VisWriter
+from bgsub.io.writers import DebugImageWriter, MaskWriter, MotionWriter, ProgressBar
+from bgsub.objects import ObjectWriter, check_objects_output
 
 _DESCRIPTION = """\
 Find the moving objects in a video and write one foreground mask per frame (0 = background,
@@ -56,7 +57,11 @@ examples:
   bgsub run 'frames/*.png' -o masks/ --start 100 --stop 400 --step 2 --width 320
   bgsub run clip.mp4 -o masks.mkv --flow-vis flow.mp4  the engine's motion field and camera fit
   bgsub run clip.mp4 -o masks.mkv --motion cam.npy     the estimated camera motion of every frame
+  bgsub run clip.mp4 -o masks.mkv --objects objects.jsonl --vis overlay.mp4
+  bgsub run clip.mp4 -o masks.mkv --config grbm.toml --json
 
+--objects writes the tracked objects of every frame (and --vis draws their boxes and ids);
+--config reads engine parameters from a TOML file; --json prints a summary for scripts.
 `bgsub methods` lists the engines and their parameters."""
 
 
@@ -87,6 +92,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                              "k maps pixels of frame k-1 to frame k, as bgsub samples' "
                              "camera_motion.npy (identity first; NaN where none was measured; "
                              "moving-camera engines)")
+    run_extras.add_options(parser)
     common.add_source_options(parser)
     common.add_output_options(parser, quiet_help="no progress bar and no notes on stderr "
                                                  "(warnings and errors are still printed)")
@@ -106,7 +112,7 @@ def _method(name: Optional[str]) -> str:
 def _check_outputs(args: argparse.Namespace, source: FrameSource) -> None:
     """Refuse bad outputs before any frame is processed."""
     outputs = [("-o", args.output), ("--vis", args.vis), ("--flow-vis", args.flow_vis),
-               ("--motion", args.motion)]
+               ("--motion", args.motion), ("--objects", args.objects)]
     outputs = [(flag, path) for flag, path in outputs if path]
     # First: "-" and the input's own folder are refused whether or not they look writable.
     common.check_distinct([args.input], outputs, input_folders=source.folders)
@@ -114,6 +120,8 @@ def _check_outputs(args: argparse.Namespace, source: FrameSource) -> None:
     for flag, path in outputs[1:]:
         if flag == "--motion":
             check_motion_output(path, overwrite=args.overwrite)
+        elif flag == "--objects":
+            check_objects_output(path, overwrite=args.overwrite)
         else:
             check_video_output(path, overwrite=args.overwrite)
 
@@ -171,16 +179,16 @@ def _eval_notice(args: argparse.Namespace, renumbered: bool) -> Optional[str]:
 
 
 def _open_writers(stack: contextlib.ExitStack, args: argparse.Namespace,
-                  info: VideoInfo) -> list:
+                  info: VideoInfo, objects: Optional[ObjectWriter]) -> list:
     """Open the outputs asked for (in ``stack``, so a failure to open one closes the others)
     and return their writers for the frame loop."""
     size = dict(width=info.width, height=info.height)
     masks = stack.enter_context(open_mask_sink(args.output, **size, fps=info.fps,
                                                overwrite=args.overwrite))
-    writers: list = [MaskWriter(masks)]
+    writers: list = [MaskWriter(masks)] + ([objects] if objects else [])  # (tracks before --vis)
     if args.vis:
-        writers.append(VisWriter(stack.enter_context(
-            VisSink(args.vis, **size, fps=info.fps, overwrite=args.overwrite))))
+        writers.append(run_extras.vis_writer(stack.enter_context(
+            VisSink(args.vis, **size, fps=info.fps, overwrite=args.overwrite)), objects))
     if args.flow_vis:
         writers.append(DebugImageWriter(stack.enter_context(
             VideoSink(args.flow_vis, fps=info.fps, overwrite=args.overwrite))))
@@ -190,12 +198,20 @@ def _open_writers(stack: contextlib.ExitStack, args: argparse.Namespace,
     return writers
 
 
+def _outputs(args: argparse.Namespace) -> dict:
+    """The outputs asked for, by kind."""
+    given = {"masks": args.output, "vis": args.vis, "flow_vis": args.flow_vis,
+             "motion": args.motion, "objects": args.objects}
+    return {kind: str(path) for kind, path in given.items() if path}
+
+
 def run(args: argparse.Namespace) -> int:
     method = _method(args.method)
-    params = engines.parse_params(method, args.param)
+    params = run_extras.engine_params(args, method)
     status = batch.dispatch(args, method=method, params=params)  # several inputs
     if status is not None:
         return status
+    tracking = run_extras.tracker_config(args)
     source = open_source(args.input, **common.source_kwargs(args))
     info = source.info
     _check_outputs(args, source)
@@ -218,16 +234,25 @@ def run(args: argparse.Namespace) -> int:
         stack.enter_context(source)
         if callable(getattr(engine, "close", None)):  # (a plugin may not subclass Engine)
             stack.callback(engine.close)  # its worker thread ends with the command, not after
-        consumers = _open_writers(stack, args, info)
+        consumers = _open_writers(stack, args, info,
+                                  run_extras.open_objects(stack, args, tracking))
         consumers.append(ProgressBar(total=info.frame_count, desc=method,
                                      enabled=not args.quiet))
-        stats = FrameLoop({method: engine}, consumers).run(source)
+        loop = FrameLoop({method: engine}, consumers)
+        try:
+            stats = loop.run(source)
+        except KeyboardInterrupt:
+            if args.json:  # what the partial outputs hold
+                run_extras.print_summary(loop.stats, method=method, outputs=_outputs(args))
+            raise
 
     short = source.truncation()  # decoding ended well before the end the video declares
     if short:
         common.warn(short)
-    written = [p for p in (args.output, args.vis, args.flow_vis, args.motion) if p]
+    written = list(_outputs(args).values())
     common.note(_summary(stats, method, written), quiet=args.quiet)
+    if args.json:
+        run_extras.print_summary(stats, method=method, outputs=_outputs(args))
     eval_notice = _eval_notice(args, bool(renumbered))  # how to score what was written
     if eval_notice and stats.frames:
         common.note(eval_notice, quiet=args.quiet)

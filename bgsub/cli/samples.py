@@ -9,7 +9,13 @@ from typing import List, Optional, Tuple
 
 from bgsub.cli.common import add_output_options, note, progress
 from bgsub.errors import InputError, OutputError
-from bgsub.samples import CATEGORIES, SceneSpec, check_video_size, generate_scene
+from bgsub.samples import (
+    CATEGORIES,
+    SceneSpec,
+    check_video_size,
+    copy_bundled_sample,
+    generate_scene,
+)
 
 _DESCRIPTION = """\
 Write synthetic scenes with exact ground truth, in the CDnet 2014 layout: a textured world seen
@@ -28,10 +34,12 @@ examples:
   bgsub samples scenes/ --category pan jitter --seed 0 1 2 --frames 60
   bgsub samples scenes/ --size 640x480 --overwrite
   bgsub samples --list                            the categories and what their camera does
+  bgsub samples --pan                             copy the bundled sample video to samples/pan.mp4
 """
 
 
 _DEFAULT_DIR = "bgsub-samples"
+_PAN_DIR = "samples"
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -55,6 +63,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                              "(default: 320x240)")
     parser.add_argument("--list", action="store_true",
                         help="print the categories and exit")
+    parser.add_argument("--pan", action="store_true",
+                        help=f"only copy the bundled sample video (the pan scene of seed 0) to "
+                             f"DIR/pan.mp4 (default DIR: {_PAN_DIR}), the file the examples of "
+                             "`bgsub --help` read")
     add_output_options(parser, quiet_help="no progress bar, no list of the scenes written and "
                                           "no notes (warnings and errors are still printed)")
     parser.set_defaults(handler=run)
@@ -102,12 +114,24 @@ def _categories(values: Optional[List[str]], dir_given: bool = True) -> List[str
     return list(dict.fromkeys(names))
 
 
+def _copy_pan(args: argparse.Namespace) -> int:
+    if args.category or args.seed:
+        raise InputError("--pan copies the bundled video alone; leave out --category and --seed "
+                         "(or --pan, to render scenes)")
+    path = copy_bundled_sample(args.dir or _PAN_DIR, overwrite=args.overwrite)
+    note(f"wrote {path} (the pan scene of seed 0; try `bgsub run {path} -o pan_masks.mkv`)",
+         quiet=args.quiet)
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     if args.list:
         width = max(map(len, CATEGORIES))
         for name, description in CATEGORIES.items():
             print(f"{name:<{width}}  {description}")
         return 0
+    if args.pan:
+        return _copy_pan(args)
     width, height = parse_size(args.size)
     dir_given = args.dir is not None
     specs = [SceneSpec(category, seed=seed, width=width, height=height, n_frames=args.frames)

@@ -17,7 +17,7 @@ them 127; these engines map them to 0 (background), so the mask contract holds e
 from __future__ import annotations
 
 import functools
-from typing import Any, Callable, Optional
+from typing import Any, Callable, Optional, Tuple
 
 import cv2
 import numpy as np
@@ -29,6 +29,37 @@ from bgsub.errors import InputError
 # OpenCV's non-shadow foreground value; everything at or below SHADOW_CUT (shadows are 127) is
 # background in a bgsub mask.
 _SHADOW_CUT = 127
+
+#: Largest per-pixel model (bytes) an OpenCV subtractor may allocate. OpenCV sizes KNN's model
+#: with a C int: above 2 GiB the size wraps round, and it asks for exabytes or, wrapped back
+#: into range, allocates too little and crashes (SIGSEGV). No sensible model needs more.
+MODEL_BUDGET = 2**31 - 1
+
+#: OpenCV's MOG2 asserts ``nmixtures <= 255`` on its first frame.
+_MAX_MIXTURES = 255
+
+
+def _largest_fitting(bytes_of: Callable[[int], int], guess: int) -> int:
+    """The largest value (0 if none) whose ``bytes_of`` (increasing) is within
+    :data:`MODEL_BUDGET`, searched from ``guess``, which is close."""
+    value = max(0, guess)
+    while value > 0 and bytes_of(value) > MODEL_BUDGET:
+        value -= 1
+    while bytes_of(value + 1) <= MODEL_BUDGET:
+        value += 1
+    return value
+
+
+def _mog2_model_bytes(pixels: int, channels: int, n_mixtures: int) -> int:
+    """Bytes of OpenCV MOG2's model: per pixel and component, a weight, a variance and a mean
+    per channel (float32), plus a mode count per pixel."""
+    return pixels * (4 * n_mixtures * (2 + channels) + 1)
+
+
+def _knn_model_bytes(pixels: int, channels: int, n_samples: int) -> int:
+    """Bytes of OpenCV KNN's model: per pixel, three sample sets (short, mid, long term) of
+    ``n_samples`` samples of the channels plus a flag byte; the C int OpenCV sizes it with."""
+    return pixels * n_samples * 3 * (channels + 1)
 
 
 def _binarize_into(raw: np.ndarray, fgmask: Optional[np.ndarray]) -> np.ndarray:
@@ -79,16 +110,23 @@ class OpenCVSubtractor(Engine):
     seed : int, optional
         The seed the caller gave OpenCV's generator (``cv2.setRNGSeed``) when it made the
         engine; given again when a pickled engine is loaded (in another process, say).
+    model_size : (str, int, callable), optional
+        ``(parameter, value, bytes_of)``: the parameter that sizes the per-pixel model, its
+        value, and ``bytes_of(pixels, channels, value)``; the first frame is refused (with the
+        largest value that fits) when the model would exceed :data:`MODEL_BUDGET`.
 
     An engine pickles (and deep-copies) before its first frame only: OpenCV's model cannot.
     """
 
     def __init__(self, make: Callable[[], Any], *, learning_rate: float = -1.0,
                  min_rate: float = 0.0, first_frame_repeats: int = 0, name: str = "opencv",
-                 seed: Optional[int] = None) -> None:
+                 seed: Optional[int] = None,
+                 model_size: Optional[Tuple[str, int, Callable[[int, int, int], int]]] = None
+                 ) -> None:
         self._make = make
         self.name = name
         self.seed = seed
+        self.model_size = model_size
         self.subtractor = make()
         self.learning_rate = float(learning_rate)
         self.min_rate = float(min_rate)
@@ -108,6 +146,8 @@ class OpenCVSubtractor(Engine):
         image = check_frame(image, shape=self._shape)
         rate = check_learning_rate(learning_rate, default=self.learning_rate)
         check_fgmask(fgmask, image.shape[:2])
+        if self._shape is None:
+            self._check_model_size(image.shape)
         if rate >= 1.0:
             # A fresh model of this frame, the same way for both subtractors (KNN at rate 1
             # calls every later pixel foreground).
@@ -122,6 +162,25 @@ class OpenCVSubtractor(Engine):
         raw = self.subtractor.apply(image, learningRate=rate)
         self._shape = image.shape
         return _binarize_into(raw, fgmask)
+
+    def _check_model_size(self, shape: tuple) -> None:
+        """Refuse frames of ``shape`` ((H, W) or (H, W, 3)) whose model would exceed
+        :data:`MODEL_BUDGET`, before OpenCV allocates it."""
+        if self.model_size is None:
+            return
+        param, value, bytes_of = self.model_size
+        pixels, channels = shape[0] * shape[1], (shape[2] if len(shape) == 3 else 1)
+        needed = bytes_of(pixels, channels, value)
+        if needed <= MODEL_BUDGET:
+            return
+        fits = _largest_fitting(lambda v: bytes_of(pixels, channels, v),
+                                value * MODEL_BUDGET // needed)
+        kind = "colour" if channels == 3 else "gray"
+        advice = (f"give {param} at most {fits} for frames of this size, or smaller frames"
+                  if fits else "give smaller frames")
+        raise InputError(f"{self.name}: {param}={value} needs a {needed / 2**30:.1f} GiB model "
+                         f"for {shape[1]}x{shape[0]} {kind} frames, above the "
+                         f"{(MODEL_BUDGET + 1) // 2**30} GiB a background model may take: {advice}")
 
     def get_background_image(self) -> Optional[np.ndarray]:
         """OpenCV's background estimate (like the input: gray or BGR uint8), ``None`` at first."""
@@ -162,7 +221,11 @@ _MOG2_PARAMS = {
         "that stays for about background_ratio*history frames becomes background",
         above=0, high=1
     ),
-    "n_mixtures": Param(5, "maximum number of Gaussian components per pixel", low=1),
+    "n_mixtures": Param(
+        5, "maximum number of Gaussian components per pixel (at most 255, OpenCV's limit; the "
+        "model, 4 (2 + channels) n_mixtures bytes per pixel, may not exceed 2 GiB)",
+        low=1, high=_MAX_MIXTURES
+    ),
     "var_threshold_gen": Param(
         9.0, "squared Mahalanobis distance under which a value updates an existing component "
         "instead of creating a new one", above=0
@@ -216,7 +279,8 @@ def make_mog2(
         var_threshold_gen=var_threshold_gen, var_init=var_init, var_min=var_min, var_max=var_max,
         complexity_reduction_threshold=complexity_reduction_threshold,
         shadow_threshold=shadow_threshold)
-    return OpenCVSubtractor(make, learning_rate=learning_rate, name="mog2")
+    return OpenCVSubtractor(make, learning_rate=learning_rate, name="mog2",
+                            model_size=("n_mixtures", int(n_mixtures), _mog2_model_bytes))
 
 
 def _new_mog2(*, history: int, var_threshold: float, detect_shadows: bool,
@@ -247,7 +311,10 @@ _KNN_PARAMS = {
     "detect_shadows": Param(
         False, "detect shadows (OpenCV marks them 127; bgsub maps them to background); slower"
     ),
-    "n_samples": Param(7, "number of samples stored per pixel", low=1),
+    "n_samples": Param(
+        7, "number of samples stored per pixel (the model, 3 (channels + 1) n_samples bytes per "
+        "pixel, may not exceed 2 GiB: e.g. at most 2330 on 320x240 colour frames)", low=1
+    ),
     "knn_samples": Param(
         2, "k: how many stored samples must match for the pixel to be background (at most "
         "n_samples)", low=1
@@ -302,7 +369,8 @@ def make_knn(
     # 1e-6: a sample kept for ~10^5 frames, frozen in practice (see OpenCVSubtractor).
     return OpenCVSubtractor(make, learning_rate=learning_rate, min_rate=1e-6,
                             first_frame_repeats=int(n_samples), name="knn",
-                            seed=int(seed) if seed >= 0 else None)
+                            seed=int(seed) if seed >= 0 else None,
+                            model_size=("n_samples", int(n_samples), _knn_model_bytes))
 
 
 def _new_knn(*, history: int, dist2_threshold: float, detect_shadows: bool, n_samples: int,

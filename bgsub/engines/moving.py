@@ -40,6 +40,7 @@ import numpy as np
 from bgsub.engines import (LEARNING_RATE, Engine, Param, check_fgmask, check_frame,
                            check_learning_rate, opencv_keywords, register_engine)
 from bgsub.errors import InputError
+from bgsub.motion.config import FlowConfig
 from bgsub.motion.flowfield import FramePyramid, dense_from_patches, estimate_flow, prepare_first_frame
 from bgsub.io.flowio import draw_flow_arrows, flow_to_color
 from bgsub.background.foreground import (
@@ -1016,16 +1017,21 @@ class GrbmEngine(MovingCameraEngine):
 
     def _prepare(self, data: FramePyramid) -> None:
         if not hasattr(self.model, "patch_motion"):
-            prepare_first_frame(data, **self._flow_settings(self.levels, self.finest))
+            prepare_first_frame(data, self._flow_config(self.levels, self.finest),
+                                model=self.model)
 
-    def _flow_settings(self, levels: Optional[int], finest: int,
-                       stride: Optional[int] = None) -> dict:
-        """The keyword arguments :func:`estimate_flow` and :func:`prepare_first_frame` share."""
-        return dict(model=self.model, stride=self.stride if stride is None else stride,
-                    levels=levels, max_motion=self.max_motion, min_texture=self.min_texture,
-                    texture_scale=self.texture_scale, max_patches=self.max_patches,
-                    iterations=self.iterations, finest=finest,
-                    refine_stride=self.refine_stride, start_tolerance=self.start_tolerance)
+    def _flow_config(self, levels: Optional[int], finest: int,
+                     stride: Optional[int] = None) -> FlowConfig:
+        """The :class:`FlowConfig` of :func:`estimate_flow` and :func:`prepare_first_frame`."""
+        return FlowConfig(stride=self.stride if stride is None else stride, levels=levels or 0,
+                          max_motion=self.max_motion, min_texture=self.min_texture,
+                          texture_scale=self.texture_scale, max_patches=self.max_patches or 0,
+                          iterations=self.iterations, finest=finest,
+                          refine_stride=self.refine_stride or 0,
+                          start_tolerance=self.start_tolerance, search=self.search,
+                          coarse_iterations=self.coarse_iterations,
+                          search_below=self.search_below, start_model=self.start_model,
+                          converged=self.converged, warn_range=False)
 
     def _read(self, prev: FramePyramid, cur: FramePyramid, prior: Optional[np.ndarray],
               finest: int, stride: Optional[int] = None) -> tuple:
@@ -1040,11 +1046,8 @@ class GrbmEngine(MovingCameraEngine):
             levels = self.prior_levels if self.prior_levels > 0 else None
         # (warn_range: max_motion only plans the pyramid here; beyond its reach the engine
         # reads from the previous frame's motion, and a poorly supported start retries coarser.)
-        flow = estimate_flow(prev, cur, prior=prior, search=self.search,
-                             coarse_iterations=self.coarse_iterations,
-                             search_below=self.search_below, start_model=self.start_model,
-                             converged=self.converged, warn_range=False,
-                             **self._flow_settings(levels, finest, stride))
+        flow = estimate_flow(prev, cur, self._flow_config(levels, finest, stride),
+                             model=self.model, prior=prior)
         motion = self._fit(flow.centres, flow.disp, flow.weights, cur.shape)
         used = max(int(np.count_nonzero(flow.weights > 0)), 1)
         return flow, motion, (motion.n_inliers / used if motion.ok else 0.0)

@@ -21,7 +21,7 @@ import numpy as np
 
 from bgsub.errors import InputError, OutputError
 from bgsub.io.sinks import write_atomically
-from bgsub.io.sources import VIDEO_SUFFIXES
+from bgsub.io.sources import VIDEO_SUFFIXES, decode_image
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -362,7 +362,7 @@ def read_image(path: PathLike) -> np.ndarray:
     """
     p = check_image_file(path)
     data = np.fromfile(str(p), dtype=np.uint8)  # np.fromfile + imdecode: any path encoding
-    image = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
+    image = decode_image(data, name=str(p))
     if image is None:
         if p.suffix.lower() in VIDEO_SUFFIXES:  # a name that says "video"
             raise InputError(f"{p} is a video, not an image: give a video alone (bgsub flow "

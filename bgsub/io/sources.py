@@ -28,6 +28,7 @@ import math
 import numbers
 import os
 import re
+import sys
 import threading
 import weakref
 from dataclasses import dataclass
@@ -126,6 +127,67 @@ def quiet_opencv() -> Iterator[None]:
 _quiet_lock = threading.Lock()
 _quiet_depth = 0  # quiet_opencv blocks running now
 _loud_level = 0  # OpenCV's log level before the first of them
+
+
+@contextlib.contextmanager
+def _native_stderr_muted(data: np.ndarray) -> Iterator[None]:
+    """Point file descriptor 2 at the null device inside the ``with`` block when ``data`` is a
+    PNG file's bytes: libpng prints its errors there itself ("libpng error: IDAT: ..."), outside
+    OpenCV's log levels, and bgsub reports the failed decode in its own line. Other data, and
+    calls while another block is open (threads), leave stderr alone."""
+    if not _native_lock.acquire(blocking=False):
+        yield
+        return
+    try:
+        if data[:8].tobytes() != _PNG_SIGNATURE:
+            yield
+            return
+        sys.stderr.flush()  # what Python holds for fd 2 goes out before it is muted
+        saved, sink = os.dup(2), os.open(os.devnull, os.O_WRONLY)
+        try:
+            os.dup2(sink, 2)
+            yield
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            os.close(sink)
+    finally:
+        _native_lock.release()
+
+
+_native_lock = threading.Lock()
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def decode_image(data: np.ndarray, *, name: str) -> Optional[np.ndarray]:
+    """An image file's bytes ``(N,) uint8`` decoded as ``(H, W, 3) uint8`` BGR (what
+    ``cv2.IMREAD_COLOR`` gives: gray expanded, alpha dropped, 16 bits scaled to 8), without
+    OpenCV's or libpng's own lines on stderr; None when it is no image OpenCV decodes.
+
+    Floating-point images (32-bit TIFF, ...), which ``IMREAD_COLOR`` refuses, are read as gray
+    levels in [0, 1]; values outside raise :class:`InputError` naming ``name`` (the file), as
+    does a sample type with no 8-bit reading."""
+    if not data.size:
+        return None
+    with quiet_opencv(), _native_stderr_muted(data):
+        image = cv2.imdecode(data, cv2.IMREAD_COLOR)
+        raw = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if image is None else None
+    if image is not None or raw is None:
+        return image
+    if raw.dtype.kind != "f":
+        raise InputError(f"{name}: images of {raw.dtype} samples are not supported (give 8- or "
+                         "16-bit, or floating-point, images)")
+    low, high = (float(raw.min()), float(raw.max())) if np.isfinite(raw).all() else (-1.0, -1.0)
+    if not 0.0 <= low <= high <= 1.0:
+        shown = f"from {low:g} to {high:g}" if high >= 0 else "that are not finite"
+        raise InputError(f"{name}: a floating-point image with values {shown}; bgsub reads "
+                         "floating-point images as gray levels from 0 to 1 (convert it to 8 bits)")
+    image = np.rint(raw * np.float32(255.0)).astype(np.uint8)
+    channels = image.shape[2] if image.ndim == 3 else 1
+    if channels not in (1, 3, 4):
+        raise InputError(f"{name}: images with {channels} channels are not supported")
+    code = {1: cv2.COLOR_GRAY2BGR, 4: cv2.COLOR_BGRA2BGR}.get(channels)
+    return image if code is None else cv2.cvtColor(image, code)
 
 
 def natural_key(text: str) -> list:
@@ -250,8 +312,7 @@ class _ImageListBackend:
             # libjpeg would decode what is there, fill the rest with gray and only print
             # "Premature end of JPEG file" without a name: a half-gray frame is no input.
             raise InputError(f"{path}: truncated JPEG (it stops before its end marker)")
-        with quiet_opencv():
-            image = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
+        image = decode_image(data, name=str(path))
         if image is None:
             raise InputError(f"{path}: cannot read this image (corrupt or not an image)")
         return image
@@ -400,12 +461,14 @@ class FrameSource:
 
 
 def _check_range(start: int, stop: Optional[int], step: int) -> None:
+    # The step first: a caller that counts stop from it (start + frames * step) gets a stop
+    # that is wrong only because the step is.
+    if not isinstance(step, (int, np.integer)) or step < 1:
+        raise InputError(f"invalid frame range: step must be at least 1, not {step!r}")
     if not isinstance(start, (int, np.integer)) or start < 0:
         raise InputError(f"invalid frame range: start must be a frame number >= 0, not {start!r}")
     if stop is not None and (not isinstance(stop, (int, np.integer)) or stop <= start):
         raise InputError(f"invalid frame range: stop ({stop!r}) must be after start ({start})")
-    if not isinstance(step, (int, np.integer)) or step < 1:
-        raise InputError(f"invalid frame range: step must be at least 1, not {step!r}")
 
 
 #: Largest side of a resized frame (8K video is 7680 wide).
@@ -486,6 +549,9 @@ def open_source(path: PathLike, *, start: int = 0, stop: Optional[int] = None, s
         backend = _VideoBackend(location)
     elif glob.has_magic(text):
         backend = _glob_backend(text)
+    elif location.exists():
+        raise InputError(f"{text}: not a video file, image folder or glob pattern (a device "
+                         "or other special file)")
     else:
         raise InputError(f"{text}: no such file or folder")
 

@@ -52,6 +52,13 @@ NORMALIZATIONS = ("none", "contrast")
 
 _ARRAYS = ("wxf", "wyf", "whf", "bh", "by")
 
+#: Smallest patch side a model may have: a patch of 1 or 2 pixels has no centre pixel with a
+#: neighbour on each side, so it shows no motion (and the patch grids assume a centre).
+MIN_PATCH_SIZE = 3
+
+#: The ``meta`` entries the motion readers take as the model's displacement range (pixels).
+RANGE_KEYS = ("max_disp", "max_shift", "max_displacement")
+
 
 def sigmoid(a: np.ndarray) -> np.ndarray:
     """Logistic function, float32 in and out, without overflow warnings."""
@@ -81,7 +88,7 @@ class GatedRBM:
     by : (n_out,) float32
         Output biases.
     patch_size : int
-        ``p`` (at least 1); ``n_in == n_out == p * p``.
+        ``p`` (at least :data:`MIN_PATCH_SIZE`); ``n_in == n_out == p * p``.
     output_units : {"binary", "gaussian"}
         Binary (random dots) or unit-variance Gaussian (normalised real images).
     normalization : {"none", "contrast"}
@@ -286,8 +293,9 @@ class GatedRBM:
     # ------------------------------------------------------------------ files
 
     def _shape_problem(self) -> str:
-        if self.patch_size < 1:
-            return f"patch_size must be at least 1, not {self.patch_size}"
+        if self.patch_size < MIN_PATCH_SIZE:
+            return (f"patch_size must be at least {MIN_PATCH_SIZE} (smaller patches cannot show "
+                    f"motion), not {self.patch_size}")
         if not (np.isfinite(self.contrast_floor) and self.contrast_floor > 0):
             return f"contrast_floor must be a number above 0, not {self.contrast_floor!r}"
         n_f = self.wxf.shape[1] if self.wxf.ndim == 2 else -1
@@ -300,6 +308,9 @@ class GatedRBM:
             arr = getattr(self, name)
             if arr.ndim != 2 or arr.shape != expect[name]:
                 return f"{name} has shape {arr.shape}, expected {expect[name]} for {self.patch_size}x{self.patch_size} patches"
+        if n_f < 1 or self.whf.shape[0] < 1:
+            return (f"it needs at least one factor and one mapping unit, not {n_f} and "
+                    f"{self.whf.shape[0]}")
         if self.bh.shape != (self.whf.shape[0],):
             return f"bh has shape {self.bh.shape}, expected ({self.whf.shape[0]},)"
         if self.by.shape != (self.wyf.shape[0],):
@@ -417,8 +428,28 @@ class GatedRBM:
             model = cls(**arrays, **kwargs)
         except ModelError as err:
             raise ModelError(f"{path}: {err}") from None
+        problem = _range_problem(model.meta, model.patch_size)
+        if problem:
+            raise ModelError(f"{path}: inconsistent gated RBM: {problem}")
         model.meta.setdefault("source", str(path))
         return model
+
+
+def _range_problem(meta: Dict[str, Any], p: int) -> str:
+    """Why the displacement range a model's ``meta`` states (:data:`RANGE_KEYS`) cannot be
+    read with its ``p x p`` patches ("" when it can): the readouts compare pixels that stay in
+    the patch after the shift, so the range is a number of pixels from 0 to half the patch
+    (as ``bgsub train --max-shift`` requires)."""
+    limit = (p - 1) // 2
+    for key in RANGE_KEYS:
+        if key not in meta:
+            continue
+        value = meta[key]
+        if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                or not 0 <= value <= limit:
+            return (f"meta {key} {value!r} is not a displacement its {p}x{p} patches can show "
+                    f"(a number of pixels from 0 to {limit})")
+    return ""
 
 
 def _shipped_path(name: str):

@@ -40,6 +40,7 @@ __all__ = [
     "raw_patch_motion",
     "precompute",
     "max_flow_field",
+    "max_flow_image",
     "analogy",
     "analogy_images",
 ]
@@ -455,6 +456,85 @@ def max_flow_field(
         m = (g1[start:stop] @ pairs.T).reshape(stop - start, p2, n_off)
         flow[start:stop] = offsets[np.argmax(m, axis=2)]
     return flow.reshape(n, p, p, 2)
+
+
+def _patch_origins(size: int, p: int, stride: int) -> np.ndarray:
+    """Top-left offsets of patches along one axis of ``size`` pixels: every ``stride``, plus
+    one flush with the far edge so that every pixel is covered. ``(n,) intp``."""
+    starts = list(range(0, size - p + 1, stride))
+    if starts[-1] != size - p:
+        starts.append(size - p)
+    return np.asarray(starts, np.intp)
+
+
+def _nearest_origin(size: int, starts: np.ndarray, p: int) -> np.ndarray:
+    """For each pixel along an axis, the index of the patch (origins ``starts``) whose centre
+    is nearest: ``(size,) intp``. That patch holds the pixel farthest from its own border,
+    where max-flow targets are least often cut off by the patch edge."""
+    centres = starts + (p - 1) / 2.0
+    return np.argmin(np.abs(np.arange(size)[:, None] - centres[None, :]), axis=1)
+
+
+def max_flow_image(
+    model: GatedRBM,
+    image1: np.ndarray,
+    image2: np.ndarray,
+    *,
+    stride: int,
+    radius: Optional[int] = None,
+) -> np.ndarray:
+    """The max-flow field (paper, Algorithm 2) of two whole images, pixel by pixel.
+
+    Patches are cut every ``stride`` pixels (and flush with the far edges); every pixel takes
+    the max-flow vector it has in the patch whose centre is nearest. An image of one patch's
+    size is the paper's setup: one patch pair, one max-flow vector per pixel.
+
+    Parameters
+    ----------
+    model : GatedRBM
+    image1, image2 : (H, W) gray or (H, W, 3) BGR images of one size, ``H, W >= p``; uint8
+        0-255 or float in [0, 1] (see :func:`bgsub.model.tiling.to_gray`)
+    stride : int
+        Patch step, 1 to ``p``.
+    radius : int, optional
+        Windowed max-flow (see :func:`max_flow_field`); None: all targets, as in the paper.
+
+    Returns
+    -------
+    (H, W, 2) float32
+        ``(dx, dy)`` per pixel of ``image1``; NaN where the patch pair is flat (no contrast:
+        nothing to read).
+
+    Raises
+    ------
+    InputError
+        Images of different sizes or smaller than a patch, ``stride`` outside 1 to ``p``.
+    """
+    from numpy.lib.stride_tricks import sliding_window_view
+
+    from bgsub.model.tiling import to_gray
+
+    p = model.patch_size
+    if not isinstance(stride, (int, np.integer)) or not 1 <= stride <= p:
+        raise InputError(f"stride must be from 1 to the model's patch size {p}, not {stride}")
+    g1, g2 = to_gray(image1), to_gray(image2)
+    if g1.shape != g2.shape or min(g1.shape) < p:
+        raise InputError(f"max-flow needs two images of one size, at least {p}x{p}, not "
+                         f"{g1.shape[1]}x{g1.shape[0]} and {g2.shape[1]}x{g2.shape[0]}")
+    hgt, wid = g1.shape
+    ys, xs = _patch_origins(hgt, p, stride), _patch_origins(wid, p, stride)
+
+    def cut(img: np.ndarray) -> np.ndarray:
+        return np.ascontiguousarray(sliding_window_view(img, (p, p))[np.ix_(ys, xs)]
+                                    ).reshape(-1, p * p)
+
+    x, y, flat = model.prepare(cut(g1), cut(g2))
+    flow = max_flow_field(model, x, y, radius=radius)  # (N, p, p, 2)
+    flow[flat] = np.nan
+    iy, ix = _nearest_origin(hgt, ys, p), _nearest_origin(wid, xs, p)
+    rows, cols = np.arange(hgt), np.arange(wid)
+    patch = iy[:, None] * len(xs) + ix[None, :]
+    return flow[patch, (rows - ys[iy])[:, None], (cols - xs[ix])[None, :]]
 
 
 def analogy(model: GatedRBM, x: np.ndarray, y: np.ndarray, x2: np.ndarray) -> np.ndarray:

@@ -23,7 +23,7 @@ from typing import Callable, Dict, List, Optional, Tuple
 import numpy as np
 
 from bgsub.errors import InputError, ProcessingError
-from bgsub.model.rbm import GatedRBM, sigmoid
+from bgsub.model.rbm import MIN_PATCH_SIZE, GatedRBM, sigmoid
 
 __all__ = [
     "PairSource",
@@ -305,10 +305,19 @@ class TrainConfig:
 
     def check(self) -> None:
         """Raise :class:`InputError` for settings that cannot work."""
-        positive = ("patch_size", "n_factors", "n_hidden", "epochs", "n_pairs", "batch_size", "cd_k")
+        if int(self.patch_size) < MIN_PATCH_SIZE:
+            raise InputError(f"patch-size must be at least {MIN_PATCH_SIZE} (smaller patches "
+                             f"cannot show motion), not {self.patch_size}")
+        positive = ("n_factors", "n_hidden", "epochs", "n_pairs", "batch_size", "cd_k")
         for name in positive:
             if int(getattr(self, name)) < 1:
                 raise InputError(f"{name.replace('_', '-')} must be at least 1, not {getattr(self, name)}")
+        needed = self.memory_bytes()
+        if needed > TRAIN_MEMORY:
+            raise InputError(
+                f"patch-size {self.patch_size} with {self.n_pairs} pairs and {self.n_factors} "
+                f"factors needs about {needed / 2**30:.1f} GiB to train, more than the "
+                f"{TRAIN_MEMORY // 2**30} GiB allowed: lower the patch size or the number of pairs")
         if not (self.lr > 0 and math.isfinite(self.lr)):
             raise InputError(f"learning rate must be positive, not {self.lr}")
         # NaN would otherwise surface much later as a misleading "training diverged".
@@ -325,6 +334,22 @@ class TrainConfig:
             raise InputError(f"output units must be binary or gaussian, not {self.output_units!r}")
         if self.lr_schedule not in ("constant", "linear"):
             raise InputError(f"lr schedule must be constant or linear, not {self.lr_schedule!r}")
+
+
+    def memory_bytes(self) -> int:
+        """A rough peak of what :func:`train` holds (bytes): an epoch's pairs (float32, with the
+        larger images the dots are cut from), the weights with their velocities and gradients,
+        and the whitening's covariance and eigenvectors (float64)."""
+        n_in = int(self.patch_size) ** 2
+        pairs = 4 * 2 * int(self.n_pairs) * n_in * 2
+        weights = 4 * 3 * (2 * n_in + int(self.n_hidden)) * int(self.n_factors)
+        whitening = 8 * 2 * n_in * n_in if self.whiten else 0
+        return pairs + weights + whitening
+
+
+#: Most memory :meth:`TrainConfig.check` lets a training take (bytes): a patch size far
+#: beyond any motion model (1000: about 150 GiB) is refused before data is drawn.
+TRAIN_MEMORY = 4 * 2**30
 
 
 @dataclass

@@ -54,6 +54,42 @@ def _window_sums(image: np.ndarray, p: int) -> np.ndarray:
     return integral[p:, p:] - integral[:-p, p:] - integral[p:, :-p] + integral[:-p, :-p]
 
 
+def _best_displacements(f: np.ndarray, g: np.ndarray, stats_f: tuple, stats_g: tuple, *,
+                        p: int, r: int) -> Tuple[np.ndarray, np.ndarray]:
+    """The best NCC over ``[-r, r]^2`` of every full ``p x p`` patch of ``f`` in ``g`` (both
+    ``(H, W) float64``, mean-centred), given each frame's window sums and variances
+    ``(sums, var)`` (``(H - p + 1, W - p + 1)``, by top-left): ``(best, disp)``, the NCC
+    ``(rows, cols) float64`` (-inf where no candidate is defined) and its ``(rows, cols, 2)
+    float32`` ``(dx, dy)``."""
+    (sf, var_f), (sg, var_g) = stats_f, stats_g
+    n = float(p * p)
+    rows, cols = sf.shape  # top-left positions of full patches
+    best = np.full((rows, cols), -np.inf)
+    best_d = np.zeros((rows, cols, 2), np.float32)
+    offsets = [(dx, dy) for dy in range(-r, r + 1) for dx in range(-r, r + 1)]
+    offsets.sort(key=lambda d: (abs(d[0]) + abs(d[1]), max(abs(d[0]), abs(d[1]))))
+    for dx, dy in offsets:
+        # Top-left positions (y, x) whose displaced patch (y + dy, x + dx) fits in frame 2.
+        y0, y1 = max(0, -dy), min(rows, rows - dy)
+        x0, x1 = max(0, -dx), min(cols, cols - dx)
+        if y0 >= y1 or x0 >= x1:
+            continue
+        fa = f[y0:y1 + p - 1, x0:x1 + p - 1]
+        ga = g[y0 + dy:y1 + dy + p - 1, x0 + dx:x1 + dx + p - 1]
+        sfg = _window_sums(fa * ga, p)
+        sf_a = sf[y0:y1, x0:x1]
+        sg_a = sg[y0 + dy:y1 + dy, x0 + dx:x1 + dx]
+        denom = np.sqrt(var_f[y0:y1, x0:x1] * var_g[y0 + dy:y1 + dy, x0 + dx:x1 + dx])
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ncc = (sfg - sf_a * sg_a / n) / denom
+        ncc = np.where(denom > 0, ncc, -np.inf)
+        region = best[y0:y1, x0:x1]
+        better = ncc > region
+        region[better] = ncc[better]
+        best_d[y0:y1, x0:x1][better] = (dx, dy)
+    return best, best_d
+
+
 def ncc_block_match(
     frame1: np.ndarray,
     frame2: np.ndarray,
@@ -101,37 +137,12 @@ def ncc_block_match(
     sg, sgg = _window_sums(g, p), _window_sums(g * g, p)
     var_f = np.maximum(sff - sf * sf / n, 0.0)
     var_g = np.maximum(sgg - sg * sg / n, 0.0)
-    rows, cols = sf.shape  # top-left positions of full patches
-
-    best = np.full((rows, cols), -np.inf)
-    best_d = np.zeros((rows, cols, 2), np.float32)
-    offsets = [(dx, dy) for dy in range(-r, r + 1) for dx in range(-r, r + 1)]
-    offsets.sort(key=lambda d: (abs(d[0]) + abs(d[1]), max(abs(d[0]), abs(d[1]))))
-    for dx, dy in offsets:
-        # Top-left positions (y, x) whose displaced patch (y + dy, x + dx) fits in frame 2.
-        y0, y1 = max(0, -dy), min(rows, rows - dy)
-        x0, x1 = max(0, -dx), min(cols, cols - dx)
-        if y0 >= y1 or x0 >= x1:
-            continue
-        fa = f[y0:y1 + p - 1, x0:x1 + p - 1]
-        ga = g[y0 + dy:y1 + dy + p - 1, x0 + dx:x1 + dx + p - 1]
-        sfg = _window_sums(fa * ga, p)
-        sf_a = sf[y0:y1, x0:x1]
-        sg_a = sg[y0 + dy:y1 + dy, x0 + dx:x1 + dx]
-        denom = np.sqrt(var_f[y0:y1, x0:x1] * var_g[y0 + dy:y1 + dy, x0 + dx:x1 + dx])
-        with np.errstate(invalid="ignore", divide="ignore"):
-            ncc = (sfg - sf_a * sg_a / n) / denom
-        ncc = np.where(denom > 0, ncc, -np.inf)
-        region = best[y0:y1, x0:x1]
-        better = ncc > region
-        region[better] = ncc[better]
-        best_d[y0:y1, x0:x1][better] = (dx, dy)
-
+    best, best_d = _best_displacements(f, g, (sf, var_f), (sg, var_g), p=p, r=r)
     flat = var_f < (min_std ** 2) * n
     undefined = flat | ~np.isfinite(best)
     best_d[undefined] = np.nan
     best[undefined] = np.nan
-    half = p // 2
+    half, (rows, cols) = p // 2, best.shape
     flow = np.full((h, w, 2), np.nan, np.float32)
     score = np.full((h, w), np.nan, np.float32)
     flow[half:half + rows, half:half + cols] = best_d

@@ -20,8 +20,10 @@ import cv2
 import numpy as np
 
 from bgsub.errors import InputError
+from bgsub.settings import check_settings, setting
 
 __all__ = [
+    "CameraMotionConfig",
     "GlobalMotion",
     "MODELS",
     "fit_global_motion",
@@ -234,44 +236,14 @@ def fit_global_motion(
         ``inliers`` is over all N input correspondences. When not ``ok`` the matrix is the
         identity; callers usually substitute the previous frame's motion.
     """
-    if model not in MODELS:
-        raise InputError(f"motion model must be one of {', '.join(MODELS)}, not {model!r}")
-    if not threshold > 0:  # (also refuses NaN)
-        raise InputError(f"the RANSAC threshold must be a distance > 0 px, not {threshold}")
-    src = _points(src, "src", np.float32)
-    dst = _points(dst, "dst", np.float32)
-    if src.shape != dst.shape:
-        raise InputError(f"src and dst differ in shape: {src.shape} and {dst.shape}")
+    src, dst = _checked(src, dst, weights, model=model, threshold=threshold)
     n = len(src)
-    if weights is not None and np.shape(weights) != (n,):
-        raise InputError(f"weights must be ({n},), one per correspondence, not shape "
-                         f"{np.shape(weights)}")
     idx = _select(src, dst, weights, min_weight, max_points)
     need = max(min_points, _MIN_POINTS[model])
     if len(idx) < need:
         return GlobalMotion.identity(n, ok=False, reason="too few correspondences")
-    s, d = src[idx], dst[idx]
-
-    if model == "translation":
-        matrix, mask = _fit_translation(s, d, threshold)
-    else:
-        try:
-            if model == "homography":
-                matrix, mask = cv2.findHomography(s, d, cv2.RANSAC, threshold,
-                                                  maxIters=max_iters, confidence=confidence)
-            elif model == "affine":
-                matrix, mask = cv2.estimateAffine2D(s, d, method=cv2.RANSAC,
-                                                    ransacReprojThreshold=threshold,
-                                                    maxIters=max_iters, confidence=confidence)
-            else:
-                matrix, mask = cv2.estimateAffinePartial2D(s, d, method=cv2.RANSAC,
-                                                           ransacReprojThreshold=threshold,
-                                                           maxIters=max_iters,
-                                                           confidence=confidence)
-        except cv2.error:
-            matrix, mask = None, None
-        if matrix is not None and matrix.shape == (2, 3):
-            matrix = np.vstack([matrix, [0.0, 0.0, 1.0]])
+    matrix, mask = _ransac(src[idx], dst[idx], model=model, threshold=threshold,
+                           max_iters=max_iters, confidence=confidence)
     if matrix is None or mask is None:
         return GlobalMotion.identity(n, ok=False, reason="degenerate fit")
     matrix = np.asarray(matrix, dtype=np.float64)
@@ -291,6 +263,51 @@ def fit_global_motion(
     return GlobalMotion(matrix, inl, True, "ok")
 
 
+def _checked(src: np.ndarray, dst: np.ndarray, weights: Optional[np.ndarray], *, model: str,
+             threshold: float) -> tuple:
+    """``(src, dst)`` as ``(N, 2) float32``; :class:`InputError` for what
+    :func:`fit_global_motion` cannot take."""
+    if model not in MODELS:
+        raise InputError(f"motion model must be one of {', '.join(MODELS)}, not {model!r}")
+    if not threshold > 0:  # (also refuses NaN)
+        raise InputError(f"the RANSAC threshold must be a distance > 0 px, not {threshold}")
+    src = _points(src, "src", np.float32)
+    dst = _points(dst, "dst", np.float32)
+    if src.shape != dst.shape:
+        raise InputError(f"src and dst differ in shape: {src.shape} and {dst.shape}")
+    if weights is not None and np.shape(weights) != (len(src),):
+        raise InputError(f"weights must be ({len(src)},), one per correspondence, not shape "
+                         f"{np.shape(weights)}")
+    return src, dst
+
+
+def _ransac(s: np.ndarray, d: np.ndarray, *, model: str, threshold: float, max_iters: int,
+            confidence: float) -> tuple:
+    """RANSAC fit of ``model`` to ``(K, 2) float32`` points ``s -> d``: ``(matrix, mask)``, the
+    ``(3, 3)`` matrix (not normalised) and the ``(K, 1) uint8`` inlier mask, or ``(None,
+    None)`` when OpenCV finds no fit."""
+    if model == "translation":
+        return _fit_translation(s, d, threshold)
+    try:
+        if model == "homography":
+            matrix, mask = cv2.findHomography(s, d, cv2.RANSAC, threshold,
+                                              maxIters=max_iters, confidence=confidence)
+        elif model == "affine":
+            matrix, mask = cv2.estimateAffine2D(s, d, method=cv2.RANSAC,
+                                                ransacReprojThreshold=threshold,
+                                                maxIters=max_iters, confidence=confidence)
+        else:
+            matrix, mask = cv2.estimateAffinePartial2D(s, d, method=cv2.RANSAC,
+                                                       ransacReprojThreshold=threshold,
+                                                       maxIters=max_iters,
+                                                       confidence=confidence)
+    except cv2.error:
+        return None, None
+    if matrix is not None and matrix.shape == (2, 3):
+        matrix = np.vstack([matrix, [0.0, 0.0, 1.0]])
+    return matrix, mask
+
+
 def _fit_translation(s: np.ndarray, d: np.ndarray, threshold: float) -> tuple:
     """Translation by consensus: every correspondence is a hypothesis (cheap, exhaustive on a
     subsample), refined as the median shift of the inliers of the best one."""
@@ -303,3 +320,22 @@ def _fit_translation(s: np.ndarray, d: np.ndarray, threshold: float) -> tuple:
     mask = np.hypot(*(shifts - t).T) < threshold
     matrix = np.array([[1.0, 0.0, t[0]], [0.0, 1.0, t[1]], [0.0, 0.0, 1.0]])
     return matrix, mask.astype(np.uint8)
+
+
+@dataclass(frozen=True)
+class CameraMotionConfig:
+    """How the camera motion is fitted to a frame's correspondences (its RANSAC settings)."""
+
+    motion_model: str = setting("homography", "camera motion model fitted by RANSAC",
+                                choices=MODELS)
+    threshold: float = setting(1.5, "RANSAC inlier distance in working-size pixels", above=0)
+
+    def __post_init__(self) -> None:
+        check_settings(self)
+
+    def fit(self, src: np.ndarray, dst: np.ndarray, *, weights: Optional[np.ndarray] = None,
+            frame_size: Optional[tuple] = None) -> GlobalMotion:
+        """:func:`fit_global_motion` of ``(N, 2)`` correspondences ``src -> dst`` with this
+        model and threshold (``weights`` ``(N,)``; ``frame_size`` ``(W, H)``)."""
+        return fit_global_motion(src, dst, weights=weights, model=self.motion_model,
+                                 threshold=self.threshold, frame_size=frame_size)

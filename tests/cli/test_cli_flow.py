@@ -44,6 +44,21 @@ def test_pair_gives_full_size_flo_close_to_the_true_shift(pair, tmp_path):
     assert picture.shape == (120, 160, 3)
 
 
+def test_pair_flow_is_estimate_flows_dense_field_with_flow_config_defaults(pair, tmp_path):
+    """The command is a thin layer: its field is the Python API's, read with FlowConfig's
+    defaults (the grbm engine's) and the options given."""
+    from bgsub.io.flowio import read_image
+    from bgsub.model.rbm import load_model
+    from bgsub.motion import FlowConfig, estimate_flow
+
+    out = tmp_path / "f.flo"
+    assert main(["flow", str(pair[0]), str(pair[1]), "-o", str(out), "--levels", "2", "-q"]) == 0
+    config = FlowConfig(levels=2, dense=True, warn_range=False)
+    expected = estimate_flow(read_image(pair[0]), read_image(pair[1]), config,
+                             model=load_model("natural")).dense
+    np.testing.assert_array_equal(read_flo(out), expected)
+
+
 def test_arrows_picture(pair, tmp_path):
     vis = tmp_path / "arrows.png"
     rc = main(["flow", str(pair[0]), str(pair[1]), "-o", str(tmp_path / "f.flo"), "--vis", str(vis),
@@ -236,7 +251,7 @@ def test_npy_file_as_model(capsys, pair, tmp_path, bgsub_error):
 def test_a_random_dot_model_on_a_photograph_is_warned_about(pair, tmp_path, capsys):
     out = tmp_path / "f.flo"
     assert main(["flow", str(pair[0]), str(pair[1]), "-o", str(out), "-q",
-                 "--model", "dots-translation", "--max-motion", "8"]) == 0
+                 "--model", "dots-translation"]) == 0
     assert capsys.readouterr().err == (
         f"bgsub: warning: {pair[0]}: a binary (random-dot) model expects dark images with "
         "sparse bright dots; for photographs and natural video use a Gaussian model such as "
@@ -276,7 +291,7 @@ def _shifted_pair(tmp_path, shift, size=(240, 320)):
 
 def test_max_motion_is_read_on_frames_too_small_for_its_pyramid(tmp_path, capsys):
     # 320x240 allows 3 pyramid levels, which read about 12 px alone: --max-motion widens the
-    # coarsest level's search instead (without that search, 20 px reads as about (-3, -3)).
+    # coarsest level's search instead (without it, 20 px would be misread).
     p1, p2 = _shifted_pair(tmp_path, (20, 0))
     out = tmp_path / "f.flo"
     assert main(["flow", str(p1), str(p2), "-o", str(out), "--max-motion", "24", "-q"]) == 0

@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from bgsub.cli.flow import _MAX_SEARCH, _search_for
+from bgsub.motion import FlowConfig
 from bgsub.motion.flowfield import MotionRangeWarning, estimate_flow
 
 
@@ -35,8 +36,8 @@ def _flow_reach(frame: np.ndarray, model: _StillModel, max_motion: float, search
     """``estimate_flow``'s (levels, reach when max_motion is beyond it, else None)."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", MotionRangeWarning)
-        flow = estimate_flow(frame, frame, model=model, max_motion=max_motion, search=search,
-                             stride=32, max_patches=8)
+        config = FlowConfig(max_motion=max_motion, search=search, stride=32, max_patches=8)
+        flow = estimate_flow(frame, frame, config, model=model)
     said = [str(w.message) for w in caught if issubclass(w.category, MotionRangeWarning)]
     assert len(said) <= 1
     reach = int(re.search(r"up to about (\d+) px", said[0]).group(1)) if said else None
@@ -66,7 +67,7 @@ def test_the_cli_search_and_reach_are_those_of_estimate_flow(shape, max_disp, ca
         # and none where estimate_flow reads the whole range.
         assert cli_reach == flow_reach, where
         assert search <= _MAX_SEARCH and (search == 0 or levels > 1), where
-        if search > 0 and cli_reach is None:
+        if search > FlowConfig().search and cli_reach is None:
             # The smallest search that reaches: one ring less is out of reach for estimate_flow.
             assert _flow_reach(frame, model, max_motion, search - 1)[1] is not None, where
         if search < _MAX_SEARCH and cli_reach is not None and levels > 1:

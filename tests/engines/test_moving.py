@@ -505,7 +505,7 @@ def test_grbm_reads_a_low_contrast_pan_with_the_default_contrast_floor():
     """A pan filmed at low contrast (RMS ~3 gray levels per patch, below the shipped models'
     0.02 floor of 5.1; a gentle ramp keeps the frame itself above the blank-frame test) is read
     by the default engine and missed with the model's own floor."""
-    from test_flowfield import _shift, _texture
+    from conftest import random_texture as _texture, shifted as _shift
 
     h, w = 120, 160
     base = _texture(h, w, seed=11)[:h, :w].astype(np.float32)
@@ -530,7 +530,7 @@ def test_grbm_finds_a_zoom_and_rotation_from_a_translation_start(zoom, angle, sh
     the full model, so a first frame pair (no previous motion) that zooms by 5 % and rotates
     by 3 degrees is still recovered to a fraction of a pixel at the corners."""
     from bgsub.motion.global_motion import corner_distances
-    from test_flowfield import _texture
+    from conftest import random_texture as _texture
 
     h, w = 240, 320
     first = _texture(h, w, seed=5)[:h, :w].astype(np.uint8)
@@ -566,9 +566,9 @@ def test_coarser_stride_reaches_the_flow_estimate(monkeypatch):
     seen = []
     real = pipeline.estimate_flow
 
-    def spy(*args, **kw):
-        seen.append((kw["finest"], kw["stride"]))
-        return real(*args, **kw)
+    def spy(frame1, frame2, config, **kw):
+        seen.append((config.finest, config.stride))
+        return real(frame1, frame2, config, **kw)
 
     monkeypatch.setattr(pipeline, "estimate_flow", spy)
     # coarser_below above 1: every frame is re-read coarser, even a perfectly supported one.

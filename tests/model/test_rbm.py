@@ -129,7 +129,7 @@ def test_valid_hand_written_file_loads(tmp_path):
         ({"header": np.array(json.dumps({"patch_size": 3, "output_units": "poisson"}))}, "output units"),
         # (-3)^2 = 9 fits the arrays, but no patch has a negative side.
         ({"header": np.array(json.dumps({"patch_size": -3, "output_units": "binary"}))},
-         "patch_size must be at least 1, not -3"),
+         "patch_size must be at least 3"),
         ({"header": np.array(json.dumps({"patch_size": 3.5, "output_units": "binary"}))},
          "patch_size 3.5 is not a whole number"),
         ({"header": np.array(json.dumps({"patch_size": 3, "output_units": "binary",

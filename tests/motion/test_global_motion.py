@@ -90,9 +90,9 @@ def test_fit_refuses_points_that_are_not_n_by_2(bad):
     from bgsub.errors import InputError
 
     src, dst = _pan_points()
-    if bad == "xyz":  # was silently reshaped to (90, 2): swapped axes, ok=True
+    if bad == "xyz":  # (N, 3): reshaping it to (N * 3 / 2, 2) would mix the axes
         src, dst = np.hstack([src, np.ones((60, 1))]), np.hstack([dst, np.ones((60, 1))])
-    else:  # was "too few inliers"
+    else:
         src, dst = src.T, dst.T
     with pytest.raises(InputError, match=r"src must be \(N, 2\) points"):
         fit_global_motion(src, dst, model="translation")

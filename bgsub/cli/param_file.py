@@ -1,0 +1,70 @@
+"""Engine parameters from a TOML file (``bgsub run --config FILE.toml``).
+
+The file holds ``name = value`` pairs, the names that ``--param`` takes (``bgsub methods
+METHOD`` lists them), with TOML's types (``history = 200``, ``shadows = false``, ``model =
+"natural"``); a string is read as ``--param`` reads its text. Each error is one line naming the
+file and the key.
+"""
+
+from __future__ import annotations
+
+import datetime
+import sys
+from pathlib import Path
+from typing import Any, Dict
+
+from bgsub.engines import get_engine_spec
+from bgsub.errors import InputError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # the same parser, from the package index (a declared dependency on Python < 3.11)
+    import tomli as tomllib
+
+
+def _load(path: Path) -> Dict[str, Any]:
+    try:
+        with open(path, "rb") as fh:
+            return tomllib.load(fh)
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise InputError(f"{path}: is a folder; give a .toml file") from None
+    except OSError as err:
+        raise InputError(f"{path}: cannot read it ({err.strerror or err})") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as err:
+        raise InputError(f"{path}: not valid TOML: {err}") from None
+
+
+def _value(param: Any, name: str, value: Any) -> Any:
+    """``value`` from the file checked (and, for text, parsed) as ``param`` wants it."""
+    if isinstance(value, (dict, list, datetime.date, datetime.time)):
+        kind = {dict: "a table", list: "an array"}.get(type(value), "a date or time")
+        raise InputError(f"takes one number, true/false or string, not {kind}")
+    if isinstance(value, str):
+        return param.parse(name, value)
+    if isinstance(param.default, float) and isinstance(value, int) \
+            and not isinstance(value, bool):
+        value = float(value)  # `rate = 1` for a float parameter
+    param.check(name, value)
+    return value
+
+
+def read_params(path: Any, method: str) -> Dict[str, Any]:
+    """The parameters of engine ``method`` in the TOML file ``path``; :class:`InputError`
+    naming the file (and the key) for a missing or malformed file, an unknown key or a bad
+    value."""
+    path = Path(path)
+    spec = get_engine_spec(method)
+    params: Dict[str, Any] = {}
+    for key, value in _load(path).items():
+        name = key.replace("-", "_")
+        if name not in spec.params:
+            known = ", ".join(spec.params) or "none"
+            raise InputError(f"{path}: unknown key {key!r}: method {method!r} has no such "
+                             f"parameter (its parameters: {known})")
+        try:
+            params[name] = _value(spec.params[name], name, value)
+        except InputError as err:
+            raise InputError(f"{path}: key {key!r}: {err}") from None
+    return params

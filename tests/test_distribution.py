@@ -53,7 +53,9 @@ def test_license_is_mit_and_declared():
 def test_declared_dependencies_are_the_imported_ones():
     project = _pyproject()["project"]
     declared = {_MODULE_OF[_distribution(r)] for r in project["dependencies"]}
-    optional = {"skimage"}  # the `train` extra, imported only to retrain the natural model
+    # The `train` extra (imported only to retrain the natural model) and the `dask` extra
+    # (imported only for --scheduler).
+    optional = {"skimage", "distributed"}
     assert _imported_third_party() - optional == declared
 
 

@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any, Dict, List
 
+from bgsub.cli import batch
 from bgsub.cli.common import add_output_options, add_source_options, note, source_kwargs, warn
 from bgsub.errors import InputError
 
@@ -98,6 +99,7 @@ def register(subparsers: Any) -> None:
         "--max-frames", type=int, default=None, metavar="N",
         help="process at most N frames per sequence (quick runs; note a temporal ROI may start "
              "later, e.g. frame 900 for CDnet traffic)")
+    batch.add_parallel_options(parser)  # the sequences of a dataset at once
     parser.set_defaults(handler=run)
 
 
@@ -147,6 +149,7 @@ def run(args: argparse.Namespace) -> int:
     params = parse_method_params(args.param, methods)
     if args.max_frames is not None and args.max_frames < 1:
         raise InputError(f"--max-frames takes a number >= 1, not {args.max_frames}")
+    batch.for_workers(args, "input", "output", "gt")
     try:
         report = compare_methods(
             args.input, methods=methods, report_dir=args.output, gt=args.gt, params=params,
@@ -155,6 +158,7 @@ def run(args: argparse.Namespace) -> int:
             max_frames=args.max_frames, masks=args.masks, video=not args.no_video,
             tile_height=args.tile_height,
             overwrite=args.overwrite, quiet=args.quiet, **source_kwargs(args),
+            workers=batch.jobs_and_threads(args)[0], scheduler=args.scheduler,
         )
     except KeyboardInterrupt as stop:
         partial = getattr(stop, "report", None)

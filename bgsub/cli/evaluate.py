@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from bgsub.cli import batch
 from bgsub.cli.common import warn
 from bgsub.errors import InputError, OutputError
 from bgsub.io.sinks import check_file_output
@@ -110,6 +111,7 @@ def register(subparsers: Any) -> None:
                        help="the masks stop before input frame N, 0-based (default: the end)")
     video.add_argument("--step", type=int, default=1, metavar="N",
                        help="the masks are of every N-th input frame (default: 1)")
+    batch.add_parallel_options(parser)  # the sequences of a dataset at once
     parser.set_defaults(handler=run)
 
 
@@ -123,6 +125,8 @@ def run(args: argparse.Namespace) -> int:
         if value is not None and value < 1:
             raise InputError(f"--{option.replace('_', '-')} takes a frame number >= 1, "
                              f"not {value}")
+    jobs, _ = batch.jobs_and_threads(args)
+    batch.for_workers(args, "pred", "groundtruth")
     csv_path = None
     if args.csv not in (None, "-"):
         csv_path = check_file_output(args.csv, overwrite=args.overwrite)
@@ -133,6 +137,7 @@ def run(args: argparse.Namespace) -> int:
         method=args.method,
         skip_first=args.skip_first, first_frame=args.first_frame, last_frame=args.last_frame,
         video_start=args.start, video_step=args.step, video_stop=args.stop, quiet=args.quiet,
+        jobs=jobs, scheduler=args.scheduler,
     )
 
     if csv_path is not None:

@@ -13,7 +13,7 @@ import shlex
 from typing import Any, List, Optional
 
 from bgsub import engines
-from bgsub.cli import common, run_extras
+from bgsub.cli import batch, common, run_extras
 from bgsub.errors import InputError
 from bgsub.evaluation.cdnet import VideoFrames
 from bgsub.io.loop import FrameLoop, RunStats
@@ -70,8 +70,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "run", help="foreground masks of a video or image folder", description=_DESCRIPTION,
         epilog=_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("input", metavar="INPUT",
-                        help="video file, image folder, or glob pattern such as 'frames/*.png'")
+    parser.add_argument("input", metavar="INPUT", nargs="+",
+                        help="video file, image folder, or glob pattern such as 'frames/*.png'; "
+                             "several (or a folder or glob of videos) make a batch")
     parser.add_argument("-o", "--output", required=True, metavar="OUTPUT",
                         help="mask video (.mkv/.avi lossless, .mp4/.mov lossy), or a name without "
                              "an extension for a folder of binNNNNNN.png masks")
@@ -95,6 +96,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     common.add_source_options(parser)
     common.add_output_options(parser, quiet_help="no progress bar and no notes on stderr "
                                                  "(warnings and errors are still printed)")
+    batch.add_batch_options(parser)
     parser.set_defaults(handler=run)
 
 
@@ -206,6 +208,9 @@ def _outputs(args: argparse.Namespace) -> dict:
 def run(args: argparse.Namespace) -> int:
     method = _method(args.method)
     params = run_extras.engine_params(args, method)
+    status = batch.dispatch(args, method=method, params=params)  # several inputs
+    if status is not None:
+        return status
     tracking = run_extras.tracker_config(args)
     source = open_source(args.input, **common.source_kwargs(args))
     info = source.info

@@ -106,7 +106,7 @@ from __future__ import annotations
 import os
 import sys
 from pathlib import Path
-from typing import Any, Iterable, List, Optional, Sequence
+from typing import Any, Dict, Iterable, List, Optional, Sequence, Tuple
 
 from tqdm import tqdm
 
@@ -279,6 +279,8 @@ def evaluate_dataset(
     *,
     allow_missing: bool = False,
     method: Optional[str] = None,
+    jobs: int = 1,
+    scheduler: Optional[str] = None,
     **options: Any,
 ) -> DatasetResult:
     """Evaluate every sequence under ``gt_root`` against its prediction in ``pred_root``.
@@ -294,6 +296,9 @@ def evaluate_dataset(
         Count missing frames, and sequences without any prediction, as all background.
     method : str, optional
         Score this method's masks of a `bgsub compare` report (see :func:`find_prediction`).
+    jobs, scheduler : int, str, optional
+        Sequences scored at once in local processes, or on the Dask cluster at ``scheduler``
+        (:func:`bgsub.batch.executors.ordered_map`).
     **options
         Passed to :func:`evaluate_sequence` (``ignore_roi_bmp``, ``skip_first``, ...);
         ``video_start``/``video_step``/``video_stop`` apply to every sequence (mask videos and
@@ -323,18 +328,25 @@ def evaluate_dataset(
         of = f" of method {method!r}" if method is not None else ""
         raise InputError(f"no prediction{of} in {pred_root} for {len(absent)} of {len(rels)} "
                          f"sequences ({listed}); use --allow-missing to count them as background")
-    results = []
-    for seq, rel in zip(sequences, rels):
-        pred = preds[rel]
-        results.append(evaluate_sequence(
-            pred, seq, name=rel.name,
-            category=category_of(rel), allow_missing=allow_missing, **options,
-        ))
+    from bgsub.batch.executors import ordered_map
+
+    if scheduler or jobs > 1:
+        options["quiet"] = True  # bars of several processes at once would garble the terminal
+    calls = [(preds[rel], seq, dict(options, name=rel.name, category=category_of(rel),
+                                     allow_missing=allow_missing))
+             for seq, rel in zip(sequences, rels)]
+    results = ordered_map(_evaluate_call, calls, jobs=jobs, scheduler=scheduler)
     return DatasetResult.from_sequences(results)
 
 
-def evaluate(pred: PathLike, gt: PathLike, *, method: Optional[str] = None,
-             **options: Any) -> DatasetResult:
+def _evaluate_call(call: Tuple[Any, Path, Dict[str, Any]]) -> "SequenceResult":
+    """:func:`evaluate_sequence` of ``(pred, gt_dir, keyword arguments)``, for a worker."""
+    pred, gt_dir, options = call
+    return evaluate_sequence(pred, gt_dir, **options)
+
+
+def evaluate(pred: PathLike, gt: PathLike, *, method: Optional[str] = None, jobs: int = 1,
+             scheduler: Optional[str] = None, **options: Any) -> DatasetResult:
     """Evaluate a sequence or a dataset (whichever ``gt`` is) -> :class:`DatasetResult`.
 
     A single sequence gives a result with one sequence, one category, and overall = it.
@@ -357,7 +369,7 @@ def evaluate(pred: PathLike, gt: PathLike, *, method: Optional[str] = None,
                                  f"{methods_held([Path(pred)])}")
             pred = found
         return DatasetResult.from_sequences([evaluate_sequence(pred, gt, **options)])
-    return evaluate_dataset(pred, gt, method=method, **options)
+    return evaluate_dataset(pred, gt, method=method, jobs=jobs, scheduler=scheduler, **options)
 
 
 def _check_method_name(method: str, pred: Any) -> None:

@@ -38,6 +38,7 @@ Example::
 
 from __future__ import annotations
 
+import dataclasses
 import glob
 from pathlib import Path
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
@@ -163,6 +164,8 @@ def compare_methods(
     tile_height: int = TILE_HEIGHT,
     overwrite: bool = False,
     quiet: bool = True,
+    workers: int = 1,
+    scheduler: Optional[str] = None,
 ) -> ComparisonReport:
     """Run ``methods`` on the same frames; time them and score them against ground truth.
 
@@ -208,6 +211,9 @@ def compare_methods(
         files stay.
     quiet : bool
         No progress bars (they are also off when stderr is not a terminal).
+    workers, scheduler : int, str, optional
+        The inputs of a dataset run at once in ``workers`` local processes, or on the Dask
+        cluster at ``scheduler`` (see :func:`_run_jobs_elsewhere`).
 
     Returns
     -------
@@ -249,8 +255,12 @@ def compare_methods(
     # mistyped --gt or a frame-size mismatch leaves them in place), and only they.
     written = RunOutputs(out, overwrite=overwrite, methods=names, protect=_read_paths(jobs))
     try:
-        stopped = _run_jobs(jobs, names, params, options, report, written,
-                            quiet=quiet or not is_dataset)
+        if len(jobs) > 1 and (workers > 1 or scheduler):
+            stopped = _run_jobs_elsewhere(jobs, names, params, options, report, written,
+                                          workers=workers, scheduler=scheduler)
+        else:
+            stopped = _run_jobs(jobs, names, params, options, report, written,
+                                quiet=quiet or not is_dataset)
     except (BgsubError, KeyboardInterrupt):  # refused or stopped before any result
         if created is not None:
             remove_if_no_files(created)
@@ -324,4 +334,35 @@ def _run_jobs(jobs: Sequence[Job], names: Sequence[str],
         report.warnings.extend(warnings)
         if stopped is not None:
             return stopped
+    return None
+
+
+def _job_elsewhere(call: Tuple[Job, Sequence[str], Mapping[str, Mapping[str, Any]],
+                               RunOptions, Optional[Path]]
+                   ) -> Tuple[List[ComparisonRow], List[str], List[str]]:
+    """:func:`run_job` in a worker process: its rows, warnings and the report files it wrote."""
+    job, names, params, options, root = call
+    written = RunOutputs(root, overwrite=False, methods=names, protect=[])
+    rows, warnings = run_job(job, names, params, dataclasses.replace(options, quiet=True),
+                             written)
+    return rows, warnings, written.paths
+
+
+def _run_jobs_elsewhere(jobs: Sequence[Job], names: Sequence[str],
+                        params: Mapping[str, Mapping[str, Any]], options: RunOptions,
+                        report: ComparisonReport, written: RunOutputs, *, workers: int,
+                        scheduler: Optional[str]) -> Optional[KeyboardInterrupt]:
+    """:func:`_run_jobs` on local processes or a Dask cluster
+    (:func:`bgsub.batch.executors.ordered_map`): rows, warnings and files in the jobs' order.
+    The previous run's outputs go first (every ground truth was accepted already). Ctrl-C
+    stops the jobs not started and is raised without a report."""
+    from bgsub.batch.executors import ordered_map
+
+    written.clear_previous()
+    calls = [(job, list(names), dict(params), options, written.root) for job in jobs]
+    for rows, warnings, paths in ordered_map(_job_elsewhere, calls, jobs=workers,
+                                             scheduler=scheduler):
+        report.rows.extend(rows)
+        report.warnings.extend(warnings)
+        written.paths.extend(path for path in paths if path not in written.paths)
     return None

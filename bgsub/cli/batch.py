@@ -1,0 +1,194 @@
+"""Many inputs in one command: ``bgsub run IN1 IN2 ... -o OUTDIR/`` and the ``--jobs`` /
+``--scheduler`` options of ``run``, ``compare`` and ``eval``.
+
+A thin layer over :mod:`bgsub.batch`: the options, a progress bar over the inputs, one line per
+failure, the closing summary line and the ``--summary`` JSON.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from typing import Any, Optional
+
+from bgsub.errors import InputError, OutputError
+
+_BATCH_HELP = """\
+several inputs (or a folder or glob of videos) make a batch: one output per input in the -o
+folder, named after the input (OUTDIR/v1.mkv for v1.mp4; --mask-format png: a folder
+OUTDIR/v1/ of binNNNNNN.png), and --vis, --flow-vis and --motion name folders too. An input
+whose complete outputs exist is skipped (--overwrite redoes it); OUTDIR/.bgsub-batch/ records
+which are complete. A failing input does not stop the others; the exit status is 1 when any
+failed. Ctrl-C stops the batch: finished outputs stay, running ones are partial but valid and
+are redone by the next run."""
+
+
+def add_parallel_options(parser: argparse.ArgumentParser) -> None:
+    """``--jobs`` and ``--scheduler``: how many inputs at once, and where."""
+    from bgsub.batch.threads import usable_cores
+
+    group = parser.add_argument_group("many inputs")
+    group.add_argument("-j", "--jobs", type=int, default=None, metavar="N",
+                       help="inputs processed at once in local processes, each engine on "
+                            f"one core (default: the usable cores, {usable_cores()} here)")
+    group.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                       help="run on the Dask cluster whose scheduler is at ADDRESS "
+                            "(tcp://host:8786; needs pip install 'bgsub[dask]'); inputs and "
+                            "outputs must be at the same paths on every worker")
+
+
+def add_batch_options(parser: argparse.ArgumentParser) -> None:
+    """The options of ``bgsub run`` with several inputs."""
+    from bgsub.batch.plan import MASK_FORMATS
+
+    add_parallel_options(parser)
+    group = parser._action_groups[-1]
+    group.description = _BATCH_HELP
+    group.add_argument("--mask-format", choices=MASK_FORMATS, default="mkv",
+                       help="what each input's masks are in a batch: a video of this type, or "
+                            "png for a folder of binNNNNNN.png (default: mkv)")
+    group.add_argument("--summary", default=None, metavar="FILE.json",
+                       help="write a JSON summary of the batch: per input its status, frames, "
+                            "fps and output paths")
+
+
+def for_workers(args: argparse.Namespace, *names: str) -> None:
+    """With ``--scheduler``, make the paths in ``args`` of these option names absolute: the
+    Dask workers do not share this process's working folder."""
+    if not getattr(args, "scheduler", None):
+        return
+    for name in names:
+        value = getattr(args, name, None)
+        if isinstance(value, list):
+            setattr(args, name, [os.path.abspath(v) for v in value])
+        elif value:
+            setattr(args, name, os.path.abspath(value))
+
+
+def jobs_and_threads(args: argparse.Namespace) -> tuple:
+    """``(jobs, threads per job)`` of ``--jobs`` (a Dask task gets one thread)."""
+    from bgsub.batch.threads import threads_per_job, usable_cores
+
+    jobs = usable_cores() if args.jobs is None else args.jobs
+    if jobs < 1:
+        raise InputError(f"--jobs must be at least 1, not {jobs}")
+    return jobs, (1 if args.scheduler else threads_per_job(jobs))
+
+
+def _layout(args: argparse.Namespace) -> Any:
+    from bgsub.batch.plan import OutputLayout
+    from bgsub.io.sinks import MASK_VIDEO_CODECS
+
+    if args.output.lower().endswith(tuple(MASK_VIDEO_CODECS)):
+        raise OutputError(f"{args.output}: -o of several inputs is a folder (each input's masks "
+                          "go to OUTDIR/NAME.mkv; --mask-format chooses the type)")
+    for flag, path in (("--vis", args.vis), ("--flow-vis", args.flow_vis),
+                       ("--motion", args.motion)):
+        if path and path.lower().endswith((".mp4", ".avi", ".mkv", ".mov", ".npy")):
+            raise OutputError(f"{path}: {flag} of several inputs is a folder (one file per "
+                              "input, named after it)")
+    return OutputLayout(args.output, args.mask_format, args.vis, args.flow_vis, args.motion)
+
+
+def _say(bar: Any, message: str) -> None:
+    bar.write(f"bgsub: {message}", file=sys.stderr)
+
+
+def _failure_line(result: Any) -> str:
+    """One line naming the input and why it failed (most messages name it already)."""
+    if result.message.startswith(result.input):
+        return f"error: {result.message}"
+    return f"error: {result.input}: {result.message}"
+
+
+_STATUS_ORDER = ("done", "skipped", "failed", "interrupted", "not started")
+
+
+def _closing_line(report: Any, seconds: float, folder: str) -> str:
+    counts = report.counts()
+    parts = ", ".join(f"{counts[status]} {status}" for status in _STATUS_ORDER if counts[status])
+    frames = sum(result.frames for result in report.results)
+    line = f"{len(report.results)} inputs: {parts}; {frames} frames in {seconds:.1f} s -> {folder}"
+    failed = report.failed()
+    if failed:
+        line += f"; failed: {', '.join(result.name for result in failed)}"
+    return line
+
+
+def run_batch(args: argparse.Namespace, *, method: str, params: dict) -> int:
+    """``bgsub run`` with several inputs; the exit status."""
+    from tqdm import tqdm
+
+    from bgsub.batch import executors, inputs, runner, threads
+    from bgsub.batch.job import FAILED, INTERRUPTED, run_input
+    from bgsub.cli import common
+
+    for_workers(args, "input", "output", "vis", "flow_vis", "motion")
+    items = inputs.expand(args.input)
+    layout = _layout(args)
+    jobs, per_job = jobs_and_threads(args)
+    runner.check_layout(layout, items)
+    runner.check_method(method, params, layout)
+    layout.create_folders()
+    run_params = {k: v for k, v in threads.engine_params(method, params, threads=per_job).items()
+                  if k not in params}
+    todo, settled = runner.plan(items, layout, method=method, params=params,
+                                run_params=run_params, source=common.source_kwargs(args),
+                                overwrite=args.overwrite, threads=per_job,
+                                progress=jobs == 1 and not args.scheduler and not args.quiet)
+    results = {result.name: result for result in settled}
+    bar = tqdm(total=len(items), initial=len(settled), unit="input", desc=method,
+               file=sys.stderr, disable=args.quiet or not sys.stderr.isatty(), leave=False)
+    for result in settled:
+        if result.status == FAILED:
+            _say(bar, _failure_line(result))
+
+    def on_outcome(job: Any, outcome: Any) -> bool:
+        result = runner.outcome_result(job, outcome)
+        results[job.name] = result
+        bar.update(1)
+        if result.status == FAILED:
+            _say(bar, _failure_line(result))
+        for warning in result.warnings:
+            _say(bar, f"warning: {job.input}: {warning}")
+        return result.status == INTERRUPTED
+
+    started = time.perf_counter()
+    executor = executors.make_executor(jobs=jobs, threads=per_job, scheduler=args.scheduler)
+    with bar, executor:
+        interrupted = runner.execute(executor, run_input, todo, on_outcome=on_outcome)
+    settings = {"method": method, "params": params, "jobs": jobs, "threads_per_job": per_job,
+                "scheduler": args.scheduler}
+    report = runner.BatchReport([results[item.name] for item in items], interrupted, settings)
+    if args.summary:
+        report.write_json(args.summary)
+    common.note(_closing_line(report, time.perf_counter() - started, args.output),
+                quiet=args.quiet and report.ok)
+    if interrupted:
+        raise KeyboardInterrupt
+    return 0 if report.ok else 1
+
+
+def dispatch(args: argparse.Namespace, *, method: str, params: dict) -> Optional[int]:
+    """Run a batch when ``args.input`` (a list) makes one and return its exit status; else set
+    ``args.input`` to the one input and return None (a single run)."""
+    from bgsub.batch import inputs
+    from bgsub.io.sinks import check_file_output
+
+    if args.summary:
+        check_file_output(args.summary, overwrite=True)
+    if inputs.is_batch(args.input):
+        for flag, value in (("--objects", getattr(args, "objects", None)),
+                            ("--json", getattr(args, "json", False))):
+            if value:
+                raise InputError(f"{flag} is for a single input; a batch writes --summary "
+                                 "FILE.json")
+        return run_batch(args, method=method, params=params)
+    for flag, value in (("--scheduler", args.scheduler), ("--summary", args.summary)):
+        if value:
+            raise InputError(f"{flag} is for several inputs (a batch); give more than one "
+                             "input, or a folder or glob of videos")
+    args.input = args.input[0]
+    return None

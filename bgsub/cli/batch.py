@@ -25,14 +25,19 @@ failed. Ctrl-C stops the batch: finished outputs stay, running ones are partial 
 are redone by the next run."""
 
 
-def add_parallel_options(parser: argparse.ArgumentParser) -> None:
-    """``--jobs`` and ``--scheduler``: how many inputs at once, and where."""
+def add_parallel_options(parser: argparse.ArgumentParser, *,
+                         one_by_default: bool = False) -> None:
+    """``--jobs`` and ``--scheduler``: how many inputs at once, and where. ``one_by_default``:
+    ``--jobs`` defaults to 1 (``compare`` and ``eval``: their timings are not shared cores', and
+    Ctrl-C reports the frames processed), else to the usable cores."""
     from bgsub.batch.threads import usable_cores
 
     group = parser.add_argument_group("many inputs")
-    group.add_argument("-j", "--jobs", type=int, default=None, metavar="N",
-                       help="inputs processed at once in local processes, each engine on "
-                            f"one core (default: the usable cores, {usable_cores()} here)")
+    default = ("1: one sequence after another, so an interrupted run still reports what it "
+               "processed" if one_by_default else f"the usable cores, {usable_cores()} here")
+    group.add_argument("-j", "--jobs", type=int, default=1 if one_by_default else None,
+                       metavar="N", help="inputs processed at once in local processes, each "
+                                         f"engine on one core (default: {default})")
     group.add_argument("--scheduler", default=None, metavar="ADDRESS",
                        help="run on the Dask cluster whose scheduler is at ADDRESS "
                             "(tcp://host:8786; needs pip install 'bgsub[dask]'); inputs and "

@@ -99,7 +99,7 @@ def register(subparsers: Any) -> None:
         "--max-frames", type=int, default=None, metavar="N",
         help="process at most N frames per sequence (quick runs; note a temporal ROI may start "
              "later, e.g. frame 900 for CDnet traffic)")
-    batch.add_parallel_options(parser)  # the sequences of a dataset at once
+    batch.add_parallel_options(parser, one_by_default=True)  # the sequences of a dataset at once
     parser.set_defaults(handler=run)
 
 

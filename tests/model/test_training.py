@@ -8,7 +8,6 @@ import pytest
 from bgsub.cli import main
 from bgsub.errors import InputError, ProcessingError
 from bgsub.model.rbm import GatedRBM
-from bgsub.model import training
 from bgsub.model.training import (
     Curriculum,
     FixedPairs,

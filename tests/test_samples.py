@@ -54,8 +54,8 @@ def test_different_seeds_give_different_scenes():
 @pytest.mark.parametrize("category", list(CATEGORIES))
 @pytest.mark.parametrize("n_frames", [2, 5, 12, 21, 30])
 def test_short_scenes_render_for_every_seed(category, n_frames):
-    # The former path sampler failed (high - low < 0) for clips shorter than an object's
-    # crossing time.
+    # Clips shorter than an object's crossing time leave almost no frames for an object to
+    # enter at; every object must still get a path.
     for seed in range(4):
         frames = _render(SceneSpec(category, seed=seed, n_frames=n_frames, **SMALL))
         assert len(frames) == n_frames
@@ -63,7 +63,7 @@ def test_short_scenes_render_for_every_seed(category, n_frames):
 
 @pytest.mark.parametrize("size,n_frames,seed", [((320, 240), 12, 0), ((320, 240), 30, 1),
                                                 ((320, 240), 30, 3), ((640, 480), 6, 0)])
-def test_formerly_failing_sizes_and_lengths(size, n_frames, seed):
+def test_pan_scenes_render_frames_of_the_requested_size(size, n_frames, seed):
     spec = SceneSpec("pan", seed=seed, width=size[0], height=size[1], n_frames=n_frames)
     frames = _render(spec)
     assert frames[-1].image.shape == (size[1], size[0], 3)

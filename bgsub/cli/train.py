@@ -6,6 +6,7 @@ import argparse
 import math
 import os
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Dict, List, Optional, Tuple
 
@@ -63,7 +64,18 @@ def register(subparsers: Any) -> None:
                         help="dots-translation, dots-rotation, shifted-images, or video paths")
     parser.add_argument("-o", "--output", required=True, metavar="MODEL.npz",
                         help="where to write the model")
+    _add_model_options(parser)
+    _add_training_options(parser)
+    _add_data_options(parser)
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing model file")
+    parser.add_argument("-q", "--quiet", action="store_true",
+                        help="no progress bar and no notes on stderr (the training summary); "
+                             "warnings and errors are still printed")
+    parser.set_defaults(handler=run)
 
+
+def _add_model_options(parser: argparse.ArgumentParser) -> None:
+    """The ``model`` group: sizes, output units, whitening."""
     model = parser.add_argument_group("model")
     model.add_argument("--patch-size", type=int, default=13, metavar="P", help="patch side (default 13)")
     model.add_argument("--factors", type=int, default=200, metavar="F", help="factors (default 200)")
@@ -80,6 +92,9 @@ def register(subparsers: Any) -> None:
     model.add_argument("--normalize-filters", action="store_true",
                        help="keep input/output filters at a common norm (stabilises Gaussian units)")
 
+
+def _add_training_options(parser: argparse.ArgumentParser) -> None:
+    """The ``training`` group: epochs, pairs, learning rate, CD-k settings, seed."""
     train = parser.add_argument_group("training")
     train.add_argument("--epochs", type=int, default=None, metavar="N",
                        help="passes (default: 150 for 1-px dots, 400 with --max-shift 3, "
@@ -104,6 +119,9 @@ def register(subparsers: Any) -> None:
                        help="one fixed training set (the paper) instead of fresh pairs every epoch")
     train.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
 
+
+def _add_data_options(parser: argparse.ArgumentParser) -> None:
+    """The ``data`` group: options some data kinds take (default None: "not given")."""
     data = parser.add_argument_group(
         "data", "options for some data kinds only; given with another kind, they are refused")
     data.add_argument("--max-shift", type=float, default=None, metavar="PX",
@@ -131,12 +149,6 @@ def register(subparsers: Any) -> None:
     data.add_argument("--eval-pairs", type=int, default=None, metavar="N",
                       help="dots, shifted-images: held-out pairs scored for the summary "
                            "(default 1000; 0 skips). Not for video: its motion is unknown")
-
-    parser.add_argument("--overwrite", action="store_true", help="replace an existing model file")
-    parser.add_argument("-q", "--quiet", action="store_true",
-                        help="no progress bar and no notes on stderr (the training summary); "
-                             "warnings and errors are still printed")
-    parser.set_defaults(handler=run)
 
 
 def _sigmas(text: str) -> tuple:
@@ -371,11 +383,25 @@ def _save_interrupted(model: Any, out: Path, when: str, what: str = "the model s
 # ---------------------------------------------------------------------------------- command
 
 
-def run(args: argparse.Namespace) -> int:
-    from bgsub.model import training
-    from bgsub.model.training import Curriculum, TrainConfig
+@dataclass(frozen=True)
+class _Plan:
+    """What ``run`` trains, settled from the options before any data is made."""
 
-    # Every check first: a mistake must not cost a training run.
+    kind: str  # one of DOTS, IMAGES or "video"
+    out: Path  # the model file, checked writable
+    max_shift: float
+    blur: Tuple[float, ...]  # --blur sigmas, () for none
+    eval_pairs: int
+    epochs: int
+    curriculum: Any  # training.Curriculum, fitted to the epochs
+    has_curriculum: bool  # whether one was asked for (scaling may leave no stage)
+
+
+def _plan(args: argparse.Namespace) -> _Plan:
+    """Every check first (a mistake must not cost a training run), and the defaults that depend
+    on the data kind; sets the defaults of the kind-only options on ``args``."""
+    from bgsub.model.training import Curriculum
+
     kind = _data_kind(args.data)
     _check_options(args)
     _check_kind_options(args, kind)
@@ -387,7 +413,6 @@ def run(args: argparse.Namespace) -> int:
     max_shift = _max_shift(args, kind)
     blur = _sigmas(args.blur) if args.blur else ()
     out = _check_output(args, kind)
-    dots = kind in DOTS
 
     default_epochs = _default_epochs(kind, max_shift)
     epochs = args.epochs if args.epochs is not None else default_epochs
@@ -398,7 +423,15 @@ def run(args: argparse.Namespace) -> int:
     has_curriculum = bool(curriculum.stages)  # before scaling, which may leave no stage
     curriculum = _fit_curriculum(curriculum, args, kind, max_shift=max_shift, epochs=epochs,
                                  default_epochs=default_epochs)
+    return _Plan(kind=kind, out=out, max_shift=max_shift, blur=blur, eval_pairs=eval_pairs,
+                 epochs=epochs, curriculum=curriculum, has_curriculum=has_curriculum)
 
+
+def _train_config(args: argparse.Namespace, plan: _Plan) -> Any:
+    """The :class:`~bgsub.model.training.TrainConfig` of the options, checked."""
+    from bgsub.model.training import TrainConfig
+
+    dots = plan.kind in DOTS
     config = TrainConfig(
         patch_size=args.patch_size,
         n_factors=args.factors,
@@ -407,12 +440,12 @@ def run(args: argparse.Namespace) -> int:
         normalization="none" if dots else "contrast",
         whiten=bool(args.whiten) if args.whiten is not None else not dots,
         normalize_filters=args.normalize_filters,
-        epochs=epochs,
+        epochs=plan.epochs,
         n_pairs=args.pairs,
         batch_size=args.batch,
         cd_k=args.cd_k,
         lr=args.lr if args.lr is not None else (0.05 if dots else 0.003),
-        lr_schedule=args.lr_schedule or ("linear" if has_curriculum else "constant"),
+        lr_schedule=args.lr_schedule or ("linear" if plan.has_curriculum else "constant"),
         momentum=args.momentum,
         weight_decay=args.weight_decay,
         sparsity_target=args.sparsity,
@@ -421,45 +454,62 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
     )
     config.check()  # the library's own guard, before the data: collecting video pairs takes a while
+    return config
 
-    def describe(model: Any) -> Any:
-        model.meta["curriculum"] = str(curriculum)
-        model.meta["data_kind"] = kind
-        if kind != "dots-rotation":
-            model.meta["max_shift"] = max_shift
-        else:
-            model.meta["max_angle"] = args.max_angle
-        return model
 
+def _describe(model: Any, args: argparse.Namespace, plan: _Plan) -> Any:
+    """Record the data kind, curriculum and motion range in ``model.meta``; returns ``model``."""
+    model.meta["curriculum"] = str(plan.curriculum)
+    model.meta["data_kind"] = plan.kind
+    if plan.kind != "dots-rotation":
+        model.meta["max_shift"] = plan.max_shift
+    else:
+        model.meta["max_angle"] = args.max_angle
+    return model
+
+
+def _summarise(result: Any, scores: Dict[str, float], args: argparse.Namespace, plan: _Plan) -> None:
+    """The training summary on stderr (unless ``--quiet``)."""
+    note(f"trained {plan.epochs} epochs of {args.pairs} pairs in {result.seconds:.1f} s "
+         f"({result.seconds / max(1, result.epochs_run):.2f} s/epoch)", quiet=args.quiet)
+    note(f"final reconstruction error {result.errors[-1]:.4f} per pixel", quiet=args.quiet)
+    for key, value in scores.items():
+        note(f"held-out {key.replace('_', ' ')}: {_fmt(value)}", quiet=args.quiet)
+    note(f"model written to {plan.out}", quiet=args.quiet)
+
+
+def run(args: argparse.Namespace) -> int:
+    from bgsub.model import training
+
+    plan = _plan(args)
+    config = _train_config(args, plan)
+    kind, out = plan.kind, plan.out
     try:
-        source, description = _source(kind, args, max_shift=max_shift, curriculum=curriculum, blur=blur)
-        if kind == "dots-translation" and max_shift > 1 and args.fixed_pairs:
+        source, description = _source(kind, args, max_shift=plan.max_shift,
+                                      curriculum=plan.curriculum, blur=plan.blur)
+        if kind == "dots-translation" and plan.max_shift > 1 and args.fixed_pairs:
             note("shifts > 1 px rarely learn from a fixed training set; consider dropping --fixed-pairs",
                  quiet=args.quiet)
         result = _train(source, config, description, quiet=args.quiet)
     except training.TrainingInterrupted as stop:
         done = stop.result.epochs_run
-        return _save_interrupted(describe(stop.result.model), out, f"after {done} of {epochs} epochs")
+        return _save_interrupted(_describe(stop.result.model, args, plan), out,
+                                 f"after {done} of {plan.epochs} epochs")
     except KeyboardInterrupt:
         note(f"interrupted before the first epoch finished; no model was written to {out}")
         return 130
-    model = describe(result.model)
+    model = _describe(result.model, args, plan)
 
     try:
-        scores = _evaluate(kind, model, max_shift=max_shift, max_angle=args.max_angle, n=eval_pairs)
+        scores = _evaluate(kind, model, max_shift=plan.max_shift, max_angle=args.max_angle,
+                           n=plan.eval_pairs)
     except KeyboardInterrupt:  # training is complete: keep it, without the held-out scores
         return _save_interrupted(model, out, "during the held-out evaluation",
                                  "the fully trained model (without held-out scores)")
     if scores:
         model.meta["held_out"] = scores
     _save(model, out)
-
-    note(f"trained {epochs} epochs of {args.pairs} pairs in {result.seconds:.1f} s "
-         f"({result.seconds / max(1, result.epochs_run):.2f} s/epoch)", quiet=args.quiet)
-    note(f"final reconstruction error {result.errors[-1]:.4f} per pixel", quiet=args.quiet)
-    for key, value in scores.items():
-        note(f"held-out {key.replace('_', ' ')}: {_fmt(value)}", quiet=args.quiet)
-    note(f"model written to {out}", quiet=args.quiet)
+    _summarise(result, scores, args, plan)
     return 0
 
 

@@ -16,48 +16,38 @@ and flags patches too flat to carry motion. A model trained on PCA-whitened inpu
 whitening folded into its filters, so its inputs are always (normalised) pixels.
 
 Model files are ``.npz`` archives read with ``allow_pickle=False``; anything malformed raises
-:class:`~bgsub.errors.ModelError`.
+:class:`~bgsub.errors.ModelError`. Their format lives in :mod:`bgsub.model.model_file`;
+:meth:`GatedRBM.save`, :meth:`GatedRBM.load` and :func:`load_model` here call into it.
 """
 
 from __future__ import annotations
 
-import io
-import json
-import zipfile
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import Any, Dict, Optional, Tuple, Union
 
 import numpy as np
 
-from bgsub.errors import InputError, ModelError, OutputError
+from bgsub.errors import InputError, ModelError
+from bgsub.model import model_file
+from bgsub.model.model_file import ARRAY_NAMES as _ARRAYS
+from bgsub.model.model_file import FORMAT_VERSION, RANGE_KEYS, SHIPPED_MODELS, load_model
 
 __all__ = [
     "FORMAT_VERSION",
+    "RANGE_KEYS",
     "SHIPPED_MODELS",
     "GatedRBM",
     "load_model",
     "sigmoid",
 ]
 
-#: Version of the ``.npz`` layout written by :meth:`GatedRBM.save`.
-FORMAT_VERSION = 1
-
-#: Models that can be loaded by name (installed as package data ``bgsub.models``).
-SHIPPED_MODELS = ("natural", "dots-translation", "dots-translation-3px", "dots-rotation")
-
 OUTPUT_UNITS = ("binary", "gaussian")
 NORMALIZATIONS = ("none", "contrast")
-
-_ARRAYS = ("wxf", "wyf", "whf", "bh", "by")
 
 #: Smallest patch side a model may have: a patch of 1 or 2 pixels has no centre pixel with a
 #: neighbour on each side, so it shows no motion (and the patch grids assume a centre).
 MIN_PATCH_SIZE = 3
-
-#: The ``meta`` entries the motion readers take as the model's displacement range (pixels).
-RANGE_KEYS = ("max_disp", "max_shift", "max_displacement")
 
 
 def sigmoid(a: np.ndarray) -> np.ndarray:
@@ -290,7 +280,7 @@ class GatedRBM:
         """``h @ whf``: how strongly each factor is switched on, ``(N, F) float32``."""
         return np.asarray(h, np.float32) @ self.whf
 
-    # ------------------------------------------------------------------ files
+    # ------------------------------------------------------------------ checks and files
 
     def _shape_problem(self) -> str:
         if self.patch_size < MIN_PATCH_SIZE:
@@ -327,7 +317,8 @@ class GatedRBM:
         return ""
 
     def save(self, path: Union[str, Path], *, overwrite: bool = True) -> Path:
-        """Write the model as an ``.npz`` archive (float32 arrays + a JSON header).
+        """Write the model as an ``.npz`` archive (float32 arrays + a JSON header); see
+        :func:`bgsub.model.model_file.write_model`.
 
         Parameters
         ----------
@@ -339,153 +330,9 @@ class GatedRBM:
         -------
         Path written.
         """
-        path = Path(path)
-        if path.exists() and not overwrite:
-            raise OutputError(f"{path}: already exists (--overwrite, or overwrite=True, "
-                              "replaces it)")
-        header = {
-            "patch_size": self.patch_size,
-            "output_units": self.output_units,
-            "normalization": self.normalization,
-            "contrast_floor": self.contrast_floor,
-            "meta": self.meta,
-        }
-        arrays = {name: getattr(self, name) for name in _ARRAYS}
-        if self.wyf_gen is not None:
-            arrays["wyf_gen"] = self.wyf_gen
-        from bgsub.io.sinks import write_atomically  # (sinks imports OpenCV; rbm does not need it)
-
-        archive = io.BytesIO()  # a model is a few hundred KB: written whole, then renamed
-        np.savez_compressed(archive, format_version=np.array(FORMAT_VERSION, np.int64),
-                            header=np.array(json.dumps(header)), **arrays)
-        write_atomically(path, archive.getvalue(), what="model")
-        return path
+        return model_file.write_model(self, path, overwrite=overwrite)
 
     @classmethod
     def load(cls, path: Union[str, Path]) -> "GatedRBM":
         """Read a model written by :meth:`save`; :class:`ModelError` if it is not a valid one."""
-        path = Path(path)
-        if not path.is_file():
-            raise ModelError(f"model file {path} does not exist")
-        try:
-            loaded = np.load(path, allow_pickle=False)
-            if not isinstance(loaded, np.lib.npyio.NpzFile):  # a plain .npy array
-                raise ModelError(f"{path} is not a readable bgsub model (a single .npy array, "
-                                 "not an .npz archive)")
-            data = {}
-            with loaded as npz:
-                for name in npz.files:
-                    try:
-                        data[name] = npz[name]
-                    except ValueError as err:
-                        if "pickle" not in str(err):
-                            raise
-                        raise ModelError(f"{path}: array {name!r} holds Python objects, which "
-                                         "only pickle can read, and bgsub never loads pickles "
-                                         "(they can run code); save numbers and text only"
-                                         ) from None
-        except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as err:
-            # numpy's own message for a non-npz file suggests loading it with allow_pickle, which
-            # bgsub never does (a pickle can run code): name the problem without that advice.
-            reason = "not an .npz archive" if "pickle" in str(err) else f"corrupt or truncated: {err}"
-            raise ModelError(f"{path} is not a readable bgsub model ({reason})") from None
-        missing = [n for n in ("format_version", "header") + _ARRAYS if n not in data]
-        if missing:
-            raise ModelError(f"{path} is not a bgsub model (missing {', '.join(missing)})")
-        stored = data["format_version"]
-        if stored.dtype.kind not in "iu" or stored.size != 1:
-            shown = repr(stored.item()) if stored.size == 1 else f"of shape {stored.shape}"
-            raise ModelError(f"{path}: format version {shown} is not stored as a whole number "
-                             f"(bgsub models store {FORMAT_VERSION}); save the model again with "
-                             "bgsub")
-        version = int(stored.item())
-        if version != FORMAT_VERSION:
-            raise ModelError(
-                f"{path} has model format version {version}; this bgsub reads version {FORMAT_VERSION}"
-            )
-        try:
-            header = json.loads(str(data["header"][()]))
-            if type(header["patch_size"]) is not int:  # not 13.7, "13" or true
-                raise ValueError(f"patch_size {header['patch_size']!r} is not a whole number")
-            kwargs = dict(
-                patch_size=header["patch_size"],
-                output_units=str(header["output_units"]),
-                normalization=str(header.get("normalization", "none")),
-                contrast_floor=float(header.get("contrast_floor", 0.02)),
-                meta=dict(header.get("meta", {})),
-            )
-        except (ValueError, KeyError, TypeError) as err:
-            raise ModelError(f"{path}: malformed model header ({err})") from None
-        arrays = {}
-        for name in _ARRAYS + ("wyf_gen",):
-            if name in data:
-                arr = data[name]
-                if arr.dtype.kind not in "fiu":
-                    raise ModelError(f"{path}: array {name} has non-numeric type {arr.dtype}")
-                arrays[name] = arr
-        arrays.setdefault("wyf_gen", None)
-        try:
-            model = cls(**arrays, **kwargs)
-        except ModelError as err:
-            raise ModelError(f"{path}: {err}") from None
-        problem = _range_problem(model.meta, model.patch_size)
-        if problem:
-            raise ModelError(f"{path}: inconsistent gated RBM: {problem}")
-        model.meta.setdefault("source", str(path))
-        return model
-
-
-def _range_problem(meta: Dict[str, Any], p: int) -> str:
-    """Why the displacement range a model's ``meta`` states (:data:`RANGE_KEYS`) cannot be
-    read with its ``p x p`` patches ("" when it can): the readouts compare pixels that stay in
-    the patch after the shift, so the range is a number of pixels from 0 to half the patch
-    (as ``bgsub train --max-shift`` requires)."""
-    limit = (p - 1) // 2
-    for key in RANGE_KEYS:
-        if key not in meta:
-            continue
-        value = meta[key]
-        if isinstance(value, bool) or not isinstance(value, (int, float)) \
-                or not 0 <= value <= limit:
-            return (f"meta {key} {value!r} is not a displacement its {p}x{p} patches can show "
-                    f"(a number of pixels from 0 to {limit})")
-    return ""
-
-
-def _shipped_path(name: str):
-    try:
-        folder = resources.files("bgsub.models")
-    except ModuleNotFoundError:
-        # Run from a source checkout that was never pip-installed: models/ sits beside bgsub/.
-        folder = Path(__file__).resolve().parents[1] / "models"
-    return folder.joinpath(f"{name}.npz")
-
-
-def load_model(name_or_path: Union[str, Path, GatedRBM]) -> GatedRBM:
-    """A shipped model by name, or a model file by path.
-
-    Parameters
-    ----------
-    name_or_path : str, Path or GatedRBM
-        ``"natural"``, ``"dots-translation"``, ``"dots-translation-3px"``, ``"dots-rotation"``, or
-        the path of an ``.npz`` written by :meth:`GatedRBM.save`. A ``GatedRBM`` is returned as is.
-
-    Raises
-    ------
-    ModelError
-        Unknown name (the message lists the shipped ones), missing or invalid file.
-    """
-    if isinstance(name_or_path, GatedRBM):
-        return name_or_path
-    text = str(name_or_path)
-    if text in SHIPPED_MODELS:
-        ref = _shipped_path(text)
-        if not ref.is_file():
-            raise ModelError(f"shipped model {text!r} is not installed (no {text}.npz in bgsub.models)")
-        with resources.as_file(ref) as real:
-            return GatedRBM.load(real)
-    path = Path(text).expanduser()
-    if path.is_file():
-        return GatedRBM.load(path)
-    shipped = ", ".join(SHIPPED_MODELS)
-    raise ModelError(f"no model file {text!r} and no shipped model of that name (shipped: {shipped})")
+        return model_file.read_model(path, model_class=cls)

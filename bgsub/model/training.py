@@ -492,6 +492,85 @@ def _to_model(p: _Params, cfg: TrainConfig, whitening: Optional[_Whitening], met
 
 
 EpochCallback = Callable[[int, float, Callable[[], GatedRBM]], Optional[bool]]
+BatchCallback = Callable[[int, int], None]
+
+
+def _draw_pairs(source: PairSource, rng: np.random.Generator, epoch: int, *, cfg: TrainConfig,
+                template: GatedRBM, whitening: Optional[_Whitening]) -> Tuple[np.ndarray, np.ndarray]:
+    """One epoch's training pairs: ``source``'s raw pairs checked, prepared like the model's
+    inputs, flat pairs dropped, whitened when ``whitening`` is given; two ``(N, D) float32``."""
+    d = cfg.patch_size * cfg.patch_size
+    x_raw, y_raw = source(rng, cfg.n_pairs, epoch)
+    x_raw = np.asarray(x_raw, np.float32)
+    y_raw = np.asarray(y_raw, np.float32)
+    if x_raw.ndim != 2 or x_raw.shape != y_raw.shape or x_raw.shape[1] != d:
+        raise ProcessingError(
+            f"training data must be two (N, {d}) arrays of {cfg.patch_size}x{cfg.patch_size} "
+            f"patches, got {x_raw.shape} and {y_raw.shape}"
+        )
+    x, y, flat = template.prepare(x_raw, y_raw)
+    x, y = x[~flat], y[~flat]
+    if len(x) < cfg.batch_size:
+        raise ProcessingError(
+            f"only {len(x)} of {len(flat)} training pairs have enough contrast "
+            f"(need at least one batch of {cfg.batch_size})"
+        )
+    if whitening is not None:
+        x, y = x @ whitening.forward, y @ whitening.forward
+    return np.ascontiguousarray(x), np.ascontiguousarray(y)
+
+
+def _initial_params(cfg: TrainConfig, n_vis: int) -> _Params:
+    """Small random filters (from ``seed + 1``, apart from the data's generator), zero biases."""
+    init = np.random.default_rng(cfg.seed + 1)
+    return _Params(
+        wxf=init.normal(0, cfg.init_scale, (n_vis, cfg.n_factors)).astype(np.float32),
+        wyf=init.normal(0, cfg.init_scale, (n_vis, cfg.n_factors)).astype(np.float32),
+        whf=init.normal(0, cfg.init_scale, (cfg.n_hidden, cfg.n_factors)).astype(np.float32),
+        bh=np.zeros(cfg.n_hidden, np.float32),
+        by=np.zeros(n_vis, np.float32),
+    )
+
+
+def _epoch_lr(cfg: TrainConfig, epoch: int) -> float:
+    """The learning rate of ``epoch``: constant, or (``"linear"``) decaying to a tenth over the
+    second half of the run."""
+    if cfg.lr_schedule == "linear" and epoch >= cfg.epochs // 2:
+        frac = (epoch - cfg.epochs // 2) / max(1, cfg.epochs - cfg.epochs // 2)
+        return cfg.lr * (1.0 - 0.9 * frac)
+    return cfg.lr
+
+
+def _run_epoch(p: _Params, inc: _Params, x: np.ndarray, y: np.ndarray, *, cfg: TrainConfig,
+               epoch: int, rng: np.random.Generator, on_batch: Optional[BatchCallback]) -> float:
+    """One pass of CD-k updates over shuffled minibatches of ``x, y`` (``(N, D) float32``);
+    returns the mean squared reconstruction error per pixel (non-finite if training blew up)."""
+    lr = _epoch_lr(cfg, epoch)
+    order = rng.permutation(len(x))
+    total = 0.0
+    n_used = 0
+    for batch, b in enumerate(range(0, len(x) - cfg.batch_size + 1, cfg.batch_size)):
+        sel = order[b : b + cfg.batch_size]
+        # Overflow is caught by the divergence guard; numpy's warnings would only clutter the
+        # progress bar.
+        with np.errstate(over="ignore", invalid="ignore"):
+            total += _cd_step(p, inc, x[sel], y[sel], cfg=cfg, lr=lr, rng=rng)
+        n_used += len(sel)
+        if on_batch is not None:
+            on_batch(epoch, batch)
+        if not math.isfinite(total):
+            break  # no point finishing the epoch
+    return total / (n_used * x.shape[1])
+
+
+def _check_diverged(p: _Params, err: float, *, cfg: TrainConfig, epoch: int) -> None:
+    """``ProcessingError`` if the epoch's error or the weights show that training diverged."""
+    if not math.isfinite(err) or err > cfg.max_error or not all(np.all(np.isfinite(a)) for a in p.arrays()):
+        raise ProcessingError(
+            f"training diverged at epoch {epoch + 1} (reconstruction error {err:.3g}); "
+            f"lower the learning rate (now {cfg.lr:g})"
+            + ("" if cfg.whiten or cfg.output_units == "binary" else " or use --whiten")
+        )
 
 
 def train(
@@ -499,6 +578,7 @@ def train(
     config: Optional[TrainConfig] = None,
     *,
     on_epoch: Optional[EpochCallback] = None,
+    on_batch: Optional[BatchCallback] = None,
     data_description: str = "",
 ) -> TrainResult:
     """Train a gated RBM with CD-k on pairs from ``source``.
@@ -513,6 +593,9 @@ def train(
         Called after every epoch with the mean squared reconstruction error per pixel and a
         function building the current model (cheap; only call it when needed). Returning
         ``True`` stops training.
+    on_batch : callable ``(epoch, batch)``, optional
+        Called after every minibatch update (both 0-based), e.g. for a finer progress display.
+        A ``KeyboardInterrupt`` raised here is treated like Ctrl-C.
     data_description : str
         Recorded in the model's ``meta``.
 
@@ -531,48 +614,17 @@ def train(
     cfg = config or TrainConfig()
     cfg.check()
     rng = np.random.default_rng(cfg.seed)
-    d = cfg.patch_size * cfg.patch_size
     template = GatedRBM.create(
         patch_size=cfg.patch_size, n_factors=1, n_hidden=1, output_units=cfg.output_units,
         normalization=cfg.normalization, contrast_floor=cfg.contrast_floor,
     )
-
-    def draw(epoch: int) -> Tuple[np.ndarray, np.ndarray]:
-        x_raw, y_raw = source(rng, cfg.n_pairs, epoch)
-        x_raw = np.asarray(x_raw, np.float32)
-        y_raw = np.asarray(y_raw, np.float32)
-        if x_raw.ndim != 2 or x_raw.shape != y_raw.shape or x_raw.shape[1] != d:
-            raise ProcessingError(
-                f"training data must be two (N, {d}) arrays of {cfg.patch_size}x{cfg.patch_size} "
-                f"patches, got {x_raw.shape} and {y_raw.shape}"
-            )
-        x, y, flat = template.prepare(x_raw, y_raw)
-        x, y = x[~flat], y[~flat]
-        if len(x) < cfg.batch_size:
-            raise ProcessingError(
-                f"only {len(x)} of {len(flat)} training pairs have enough contrast "
-                f"(need at least one batch of {cfg.batch_size})"
-            )
-        if whitening is not None:
-            x, y = x @ whitening.forward, y @ whitening.forward
-        return np.ascontiguousarray(x), np.ascontiguousarray(y)
-
     whitening: Optional[_Whitening] = None
-    x, y = draw(0)
+    x, y = _draw_pairs(source, rng, 0, cfg=cfg, template=template, whitening=None)
     if cfg.whiten:
         whitening = _fit_whitening(x, y, cfg.whiten_variance)
         x, y = x @ whitening.forward, y @ whitening.forward
-    n_vis = x.shape[1]
-    init = np.random.default_rng(cfg.seed + 1)
-    p = _Params(
-        wxf=init.normal(0, cfg.init_scale, (n_vis, cfg.n_factors)).astype(np.float32),
-        wyf=init.normal(0, cfg.init_scale, (n_vis, cfg.n_factors)).astype(np.float32),
-        whf=init.normal(0, cfg.init_scale, (cfg.n_hidden, cfg.n_factors)).astype(np.float32),
-        bh=np.zeros(cfg.n_hidden, np.float32),
-        by=np.zeros(n_vis, np.float32),
-    )
+    p = _initial_params(cfg, x.shape[1])
     inc = _Params(*(np.zeros_like(a) for a in p.arrays()))
-
     meta = {
         "data": data_description,
         "training": asdict(cfg),
@@ -598,31 +650,10 @@ def train(
     try:
         for epoch in range(cfg.epochs):
             if epoch > 0 and cfg.fresh_pairs:
-                x, y = draw(epoch)
-            lr = cfg.lr
-            if cfg.lr_schedule == "linear" and epoch >= cfg.epochs // 2:
-                frac = (epoch - cfg.epochs // 2) / max(1, cfg.epochs - cfg.epochs // 2)
-                lr = cfg.lr * (1.0 - 0.9 * frac)
-            order = rng.permutation(len(x))
-            total = 0.0
-            n_used = 0
-            for b in range(0, len(x) - cfg.batch_size + 1, cfg.batch_size):
-                sel = order[b : b + cfg.batch_size]
-                # Overflow is caught by the divergence guard below; numpy's warnings would only
-                # clutter the progress bar.
-                with np.errstate(over="ignore", invalid="ignore"):
-                    total += _cd_step(p, inc, x[sel], y[sel], cfg=cfg, lr=lr, rng=rng)
-                n_used += len(sel)
-                if not math.isfinite(total):
-                    break  # no point finishing the epoch
-            err = total / (n_used * n_vis)
+                x, y = _draw_pairs(source, rng, epoch, cfg=cfg, template=template, whitening=whitening)
+            err = _run_epoch(p, inc, x, y, cfg=cfg, epoch=epoch, rng=rng, on_batch=on_batch)
             errors.append(err)
-            if not math.isfinite(err) or err > cfg.max_error or not all(np.all(np.isfinite(a)) for a in p.arrays()):
-                raise ProcessingError(
-                    f"training diverged at epoch {epoch + 1} (reconstruction error {err:.3g}); "
-                    f"lower the learning rate (now {cfg.lr:g})"
-                    + ("" if cfg.whiten or cfg.output_units == "binary" else " or use --whiten")
-                )
+            _check_diverged(p, err, cfg=cfg, epoch=epoch)
             finished, done = _Params(*(a.copy() for a in p.arrays())), epoch + 1
             if on_epoch is not None:
                 meta["epochs"] = epoch + 1

@@ -8,7 +8,6 @@ import pytest
 from bgsub.cli import main
 from bgsub.errors import InputError, ProcessingError
 from bgsub.model.rbm import GatedRBM
-from bgsub.model import training
 from bgsub.model.training import (
     Curriculum,
     FixedPairs,
@@ -213,19 +212,13 @@ def test_settings_that_cannot_work_are_refused_before_training(change):
         _small_config(**change).check()
 
 
-def test_ctrl_c_keeps_the_model_of_the_last_finished_epoch(monkeypatch):
+def test_ctrl_c_keeps_the_model_of_the_last_finished_epoch():
     # 300 pairs = 3 minibatches per epoch; Ctrl-C right after the second update of epoch 3,
     # when the weights are already part-way into that epoch.
-    step, calls = training._cd_step, []
-
-    def interrupted_step(*args, **kwargs):
-        calls.append(1)
-        result = step(*args, **kwargs)
-        if len(calls) == 8:
+    def interrupt(epoch, batch):
+        if (epoch, batch) == (2, 1):
             raise KeyboardInterrupt
-        return result
 
-    monkeypatch.setattr(training, "_cd_step", interrupted_step)
     after = {}
 
     def keep(epoch, error, get_model):
@@ -234,7 +227,8 @@ def test_ctrl_c_keeps_the_model_of_the_last_finished_epoch(monkeypatch):
     # Caught as a KeyboardInterrupt: callers that do not know TrainingInterrupted still stop
     # (and a regression fails this test rather than interrupting the whole test run).
     with pytest.raises(KeyboardInterrupt) as stop:
-        train(TranslatedDots(patch_size=9), _small_config(epochs=5, n_pairs=300), on_epoch=keep)
+        train(TranslatedDots(patch_size=9), _small_config(epochs=5, n_pairs=300), on_epoch=keep,
+              on_batch=interrupt)
     assert isinstance(stop.value, TrainingInterrupted)
     result = stop.value.result
     assert result.epochs_run == 2 and len(result.errors) == 2 and result.stopped_early
@@ -242,14 +236,20 @@ def test_ctrl_c_keeps_the_model_of_the_last_finished_epoch(monkeypatch):
     np.testing.assert_array_equal(result.model.wxf, after[2].wxf)
 
 
-def test_ctrl_c_in_the_first_epoch_is_a_plain_keyboard_interrupt(monkeypatch):
-    def interrupted_step(*args, **kwargs):
+def test_ctrl_c_in_the_first_epoch_is_a_plain_keyboard_interrupt():
+    def interrupt(epoch, batch):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(training, "_cd_step", interrupted_step)
     with pytest.raises(KeyboardInterrupt) as stop:
-        train(TranslatedDots(patch_size=9), _small_config(epochs=5, n_pairs=300))
+        train(TranslatedDots(patch_size=9), _small_config(epochs=5, n_pairs=300), on_batch=interrupt)
     assert not isinstance(stop.value, TrainingInterrupted)
+
+
+def test_on_batch_is_called_after_every_minibatch_update():
+    calls = []
+    train(TranslatedDots(patch_size=9), _small_config(epochs=2, n_pairs=300),
+          on_batch=lambda epoch, batch: calls.append((epoch, batch)))
+    assert calls == [(0, 0), (0, 1), (0, 2), (1, 0), (1, 1), (1, 2)]
 
 
 def test_flat_training_data_is_refused():

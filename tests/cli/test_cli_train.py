@@ -292,27 +292,27 @@ def _video_args(tmp_path, *extra):
 ])
 def test_option_that_video_data_does_not_use_is_refused(tmp_path, capsys, monkeypatch, extra,
                                                         message):
-    from bgsub.cli import train as train_cli
+    from bgsub.model import imagedata
 
-    def refuse():
+    def refuse(*args, **kwargs):
         raise AssertionError("the videos were read before the options were checked")
 
-    monkeypatch.setattr(train_cli, "_imagedata", refuse)
+    monkeypatch.setattr(imagedata, "video_frame_pairs", refuse)
     assert main(_video_args(tmp_path, *extra)) == 2
     assert message in _one_error_line(capsys)
 
 
 def test_video_data_takes_eval_pairs_0_and_its_own_options(tmp_path, monkeypatch):
     # Accepted up to the point where the videos are read.
-    from bgsub.cli import train as train_cli
+    from bgsub.model import imagedata
 
     class Stop(BaseException):  # passes through main(), which turns Exception into a line
         pass
 
-    def reached():
+    def reached(*args, **kwargs):
         raise Stop
 
-    monkeypatch.setattr(train_cli, "_imagedata", reached)
+    monkeypatch.setattr(imagedata, "video_frame_pairs", reached)
     with pytest.raises(Stop):
         main(_video_args(tmp_path, "--eval-pairs", "0", "--video-step", "2", "--max-shift", "2",
                          "--output-units", "gaussian"))

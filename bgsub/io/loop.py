@@ -27,6 +27,7 @@ the command line's SIGTERM/SIGHUP handler), and only in the main thread.
 from __future__ import annotations
 
 import contextlib
+from abc import ABC, abstractmethod
 import signal
 import threading
 import time
@@ -69,7 +70,7 @@ class FrameResult:
     engines: Mapping[str, Any]
 
 
-class Consumer:
+class Consumer(ABC):
     """Receives a run's frames. Subclasses implement :meth:`add`; the rest is optional.
 
     The loop calls, in order: :meth:`start` once, then per frame :meth:`prepare` on every
@@ -85,9 +86,9 @@ class Consumer:
         """Slow per-frame work (drawing, scoring) before any consumer gets the frame. An
         interrupt here leaves the frame out of every output."""
 
+    @abstractmethod
     def add(self, result: FrameResult) -> None:
         """Take the frame. Called with signals held: every consumer gets a frame or none."""
-        raise NotImplementedError
 
     def close(self, *, complete: bool, error: Optional[BaseException]) -> None:
         """The run ended. ``complete``: every frame of the input was added (the frames ran

@@ -167,3 +167,19 @@ def write_input_sequence(folder, *, n_frames=8, side=10, speed=4, seed=0, tempor
     if roi is not None:
         cv2.imwrite(str(folder / "ROI.bmp"), roi)
     return folder
+
+
+def write_box_clip(path, *, seed=0, n=12, width=64, height=48):
+    """A small lossless FFV1 video (``n`` frames, ``(height, width, 3)``) of a bright box moving
+    3 px a frame to the right over dark noise; returns ``path``."""
+    import cv2
+
+    rng = np.random.default_rng(seed)
+    writer = cv2.VideoWriter(str(path), cv2.CAP_FFMPEG, cv2.VideoWriter_fourcc(*"FFV1"), 25.0,
+                             (width, height), True)
+    for k in range(n):
+        frame = rng.integers(0, 40, (height, width, 3), dtype=np.uint8)
+        frame[15:30, 3 * k:3 * k + 12] = 230
+        writer.write(frame)
+    writer.release()
+    return path

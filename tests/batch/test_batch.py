@@ -12,21 +12,13 @@ from bgsub.batch import inputs, record, runner, threads
 from bgsub.batch.job import DONE, INTERRUPTED, NOT_STARTED, RunJob, run_input
 from bgsub.batch.plan import OutputLayout
 from bgsub.errors import InputError
+from conftest import write_box_clip
 
 W, H, N = 64, 48, 12
 
 
-def write_clip(path: Path, *, seed: int = 0, n: int = N) -> Path:
-    """A small lossless video of a bright box moving right over noise."""
-    rng = np.random.default_rng(seed)
-    writer = cv2.VideoWriter(str(path), cv2.CAP_FFMPEG, cv2.VideoWriter_fourcc(*"FFV1"), 25.0,
-                             (W, H), True)
-    for k in range(n):
-        frame = rng.integers(0, 40, (H, W, 3), dtype=np.uint8)
-        frame[15:30, 3 * k:3 * k + 12] = 230
-        writer.write(frame)
-    writer.release()
-    return path
+def write_clip(path: Path, *, seed: int = 0) -> Path:
+    return write_box_clip(path, seed=seed, n=N, width=W, height=H)
 
 
 def _job(clip: Path, out: Path) -> RunJob:

@@ -14,6 +14,7 @@ import pytest
 from bgsub.cli import main
 from bgsub.engines import Engine, Param, register_engine
 from bgsub.io.sources import open_source
+from conftest import write_box_clip
 
 W, H, N = 64, 48, 12
 
@@ -37,16 +38,8 @@ register_engine("_test_batch_ctrl_c", "test: Ctrl-C at a frame",
                 params={"at": Param(5, "frame")})(_StopsAt)
 
 
-def _clip(path: Path, seed: int = 0) -> Path:
-    rng = np.random.default_rng(seed)
-    writer = cv2.VideoWriter(str(path), cv2.CAP_FFMPEG, cv2.VideoWriter_fourcc(*"FFV1"), 25.0,
-                             (W, H), True)
-    for k in range(N):
-        frame = rng.integers(0, 40, (H, W, 3), dtype=np.uint8)
-        frame[15:30, 3 * k:3 * k + 12] = 230
-        writer.write(frame)
-    writer.release()
-    return path
+def _clip(path: Path, *, seed: int = 0) -> Path:
+    return write_box_clip(path, seed=seed, n=N, width=W, height=H)
 
 
 @pytest.fixture

@@ -34,7 +34,9 @@ one level, no fitting. The random-dot models (dots-translation, dots-rotation, .
 random-dot images with max-flow by default, as the paper does; other models with patch.
 
 Colour code (Middlebury): hue = direction (right red, down yellow, left cyan, up blue/violet),
-saturation = speed (white = still), black = unknown."""
+saturation = speed (white = still), black = unknown. Each colour picture carries its legend in
+the bottom-right corner (unless --no-legend): the colour wheel, whose rim moves at the speed
+written beside it (--max-magnitude, or the picture's largest)."""
 
 _EPILOG = """\
 examples:
@@ -76,6 +78,8 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--max-magnitude", type=float, default=None, metavar="PX",
                         help="speed shown fully saturated, above 0 (default: the largest in each "
                              "picture)")
+    parser.add_argument("--no-legend", action="store_true",
+                        help="no colour wheel and speed scale in the corner of colour pictures")
     parser.add_argument("--model", default="natural", metavar="M",
                         help="shipped model name (natural, dots-translation, ...) or a .npz path "
                              "(default: natural)")
@@ -182,7 +186,8 @@ def _check_options(args: argparse.Namespace) -> None:
 
 # Options (with their defaults) that only a video input uses, and that only a picture uses.
 _VIDEO_ONLY = (("start", 0), ("stop", None), ("step", 1), ("scale", None), ("width", None))
-_PICTURE_ONLY = (("arrows", False), ("arrow_step", _ARROW_STEP), ("max_magnitude", None))
+_PICTURE_ONLY = (("arrows", False), ("arrow_step", _ARROW_STEP), ("max_magnitude", None),
+                 ("no_legend", False))
 
 
 def _given(args: argparse.Namespace, options: Tuple[Tuple[str, Any], ...]) -> List[str]:
@@ -284,7 +289,7 @@ def _run_pair(args: argparse.Namespace, model: Any) -> int:
     write_flo(args.output, flow, overwrite=args.overwrite)
     if args.vis is not None:
         picture = flow_picture(flow, image=frame1, arrows=args.arrows, step=args.arrow_step,
-                               max_magnitude=args.max_magnitude)
+                               max_magnitude=args.max_magnitude, legend=not args.no_legend)
         write_image(args.vis, picture)
     known = np.isfinite(flow).all(axis=2)
     if known.any():
@@ -333,7 +338,8 @@ def _run_video(args: argparse.Namespace, model: Any) -> int:
                     # The camera rarely changes motion abruptly: the next pair starts from it.
                     dense, prior = _estimate(previous, frame, model, args, prior=prior)
                     sink.write(flow_picture(dense, image=previous, arrows=args.arrows,
-                                            step=args.arrow_step, max_magnitude=args.max_magnitude))
+                                            step=args.arrow_step, max_magnitude=args.max_magnitude,
+                                            legend=not args.no_legend))
                     written += 1
                 previous = frame
     short = source.truncation()  # decoding ended well before the end the video declares

@@ -7,7 +7,8 @@ from pathlib import Path
 from typing import Any, Dict, List
 
 from bgsub.cli import batch
-from bgsub.cli.common import add_output_options, add_source_options, note, source_kwargs, warn
+from bgsub.cli.common import (add_codec_option, add_output_options, add_source_options,
+                              describe_codec, note, source_kwargs, warn)
 from bgsub.errors import InputError
 
 _DESCRIPTION = """\
@@ -94,6 +95,7 @@ def register(subparsers: Any) -> None:
                               "none (default: png)")
     outputs.add_argument("--no-video", action="store_true",
                          help="do not write side_by_side.mp4 (faster on datasets)")
+    add_codec_option(outputs)
     outputs.add_argument("--no-report", action="store_true",
                          help="do not write report.html (the page with charts and frames)")
     outputs.add_argument("--tile-height", type=int, default=180, metavar="PX",
@@ -163,7 +165,7 @@ def run(args: argparse.Namespace) -> int:
             skip_first=args.skip_first,
             ignore_roi_bmp=None if args.roi_bmp is None else not args.roi_bmp,
             max_frames=args.max_frames, masks=args.masks, video=not args.no_video,
-            html=not args.no_report,
+            html=not args.no_report, video_codec=args.codec,
             tile_height=args.tile_height,
             overwrite=args.overwrite, quiet=args.quiet, **source_kwargs(args),
             workers=batch.jobs_and_threads(args)[0], scheduler=args.scheduler,
@@ -183,3 +185,6 @@ def _show(report: Any, args: argparse.Namespace, what: str) -> None:
         warn(warning)
     also = ".csv, .json" if args.no_report else ".csv, .json, .html"
     note(f"{what} written to {Path(args.output) / 'report.txt'} ({also})", quiet=args.quiet)
+    codec = report.settings.get("video_codec")
+    if codec:
+        note(describe_codec("side_by_side.mp4", codec), quiet=args.quiet)

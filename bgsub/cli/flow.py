@@ -10,9 +10,10 @@ from typing import Any, List, Optional, Tuple
 
 import numpy as np
 
-from bgsub.cli.common import (add_output_options, add_source_options, check_distinct,
-                              is_binary_model, model_files, note, progress, source_kwargs, warn,
-                              warn_if_binary_model, warn_if_binary_model_on_source)
+from bgsub.cli.common import (add_codec_option, add_output_options, add_source_options,
+                              check_distinct, describe_codec, is_binary_model, model_files, note,
+                              progress, source_kwargs, warn, warn_if_binary_model,
+                              warn_if_binary_model_on_source)
 from bgsub.errors import InputError, OutputError
 from bgsub.motion.config import FlowConfig
 
@@ -99,6 +100,7 @@ def register(subparsers: Any) -> None:
                      help="patch grid step, at least 1 (at most the patch size with max-flow) "
                           f"(default {_FLOW.stride}, or the patch size if smaller; smaller = finer "
                           "field, slower)")
+    add_codec_option(parser)
     add_source_options(parser)
     add_output_options(parser, quiet_help="no progress bar and no notes on stderr (warnings "
                                           "and errors are still printed)")
@@ -169,10 +171,10 @@ def _check_options(args: argparse.Namespace) -> None:
         if args.vis is not None:
             raise InputError("--vis is for an image pair; for a video, -o is already the picture video")
     else:
-        ignored = _given(args, _VIDEO_ONLY)
+        ignored = _given(args, (*_VIDEO_ONLY, ("codec", "auto")))
         if ignored:
-            raise InputError(f"{', '.join(ignored)}: frame range and resizing apply to a video "
-                             "input, not to an image pair")
+            raise InputError(f"{', '.join(ignored)}: frame range, resizing and the video "
+                             "codec apply to a video input, not to an image pair")
         # For a pair the .flo file holds no picture: without --vis these would silently do nothing.
         unused = _given(args, _PICTURE_ONLY) if args.vis is None else []
         if unused:
@@ -332,7 +334,7 @@ def _run_video(args: argparse.Namespace, model: Any) -> int:
         prior = None
         written = 0
         with VideoSink(args.output, fps=fps, width=info.width, height=info.height,
-                       overwrite=args.overwrite) as sink:
+                       overwrite=args.overwrite, codec=args.codec) as sink:
             for _, frame in progress(source, total=info.frame_count, desc="flow", quiet=args.quiet):
                 if previous is not None:
                     # The camera rarely changes motion abruptly: the next pair starts from it.
@@ -349,4 +351,5 @@ def _run_video(args: argparse.Namespace, model: Any) -> int:
         raise InputError(f"{args.input}: needs at least two frames for a flow video")
     note(f"{written} flow pictures (one per consecutive frame pair) written to {args.output}",
          quiet=args.quiet)
+    note(describe_codec(args.output, sink.codec), quiet=args.quiet)
     return 0

@@ -55,6 +55,7 @@ from bgsub.evaluation.groundtruth import (
     category_of, find_sequences, is_sequence, open_ground_truth,
 )
 from bgsub.evaluation.html_report import write_html_report
+from bgsub.io.h264 import picture_codec
 from bgsub.evaluation.report_dir import (
     SIDE_BY_SIDE, RunOutputs, check_report_dir, remove_if_no_files, remove_previous_outputs,
 )
@@ -66,6 +67,8 @@ __all__ = ["MASK_FORMATS", "REPORT_FILES", "SIDE_BY_SIDE", "TILE_HEIGHT", "TIMIN
            "remove_previous_outputs"]
 
 PathLike = Union[str, "Path"]
+
+SIDE_BY_SIDE_SUFFIX = Path(SIDE_BY_SIDE).suffix
 
 #: Mask outputs: a folder of CDnet binNNNNNN.png, a lossless FFV1 video, or nothing.
 MASK_FORMATS = ("png", "mkv", "none")
@@ -165,6 +168,7 @@ def compare_methods(
     masks: str = "png",
     video: bool = True,
     html: bool = True,
+    video_codec: str = "auto",
     tile_height: int = TILE_HEIGHT,
     overwrite: bool = False,
     quiet: bool = True,
@@ -206,6 +210,9 @@ def compare_methods(
     video : bool
         Write ``side_by_side.mp4`` per input (input, ground truth when there is one, one mask
         per method).
+    video_codec : {"auto", "h264", "mp4v"}
+        Codec of ``side_by_side.mp4`` (:func:`bgsub.io.h264.picture_codec`: H.264 when PyAV
+        is installed, with ``"auto"``); the one used is ``report.settings["video_codec"]``.
     html : bool
         Write ``report.html`` (:mod:`bgsub.evaluation.html_report`): the figures, charts and a
         few frames of each input, in one page that needs nothing else.
@@ -238,6 +245,7 @@ def compare_methods(
     """
     names, params = _checked_methods(methods, params)
     _check_options(masks=masks, max_frames=max_frames, tile_height=tile_height)
+    codec = picture_codec(SIDE_BY_SIDE_SUFFIX, video_codec) if video else None
     input_text = str(input_path)
     out = Path(report_dir) if report_dir is not None else None
     jobs, is_dataset, plan_notes = _plan(input_text, gt, out)
@@ -249,7 +257,7 @@ def compare_methods(
     options = RunOptions(
         source=dict(start=start, stop=stop, step=step, scale=scale, width=width, fps=fps),
         max_frames=max_frames, skip_first=skip_first, ignore_roi_bmp=ignore_roi, masks=masks,
-        video=video, tile_height=tile_height, overwrite=overwrite, quiet=quiet,
+        video=video, video_codec=codec or "mp4v", tile_height=tile_height, overwrite=overwrite, quiet=quiet,
         tolerate_empty=is_dataset)
     report = ComparisonReport(
         input=input_text, methods=names, report_dir=str(out) if out else None,
@@ -257,6 +265,7 @@ def compare_methods(
             "start": start, "stop": stop, "step": step, "scale": scale, "width": width,
             "max_frames": max_frames, "skip_first": skip_first, "roi_bmp": not ignore_roi,
             "params": {m: dict(v) for m, v in params.items()},
+            **({"video_codec": codec} if codec else {}),
         },
     )
     # With overwrite, the previous run's outputs go once the first input is accepted (so a

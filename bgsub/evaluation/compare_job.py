@@ -54,6 +54,7 @@ class RunOptions:
     ignore_roi_bmp: bool
     masks: str
     video: bool
+    video_codec: str  # of side_by_side.mp4: "h264" or "mp4v"
     tile_height: int
     overwrite: bool
     quiet: bool
@@ -200,7 +201,10 @@ def run_job(job: Job, methods: Sequence[str], params: Mapping[str, Mapping[str, 
                                                  notes, warnings, stopped=stopped is not None):
         scorer = None
     rows = _rows(job, methods, loop.stats, scorer, notes)
-    shown = frames.result(name=job.name, family=job.family)
+    video = ""
+    if run.video and job.out is not None and written.root is not None:
+        video = (job.out / SIDE_BY_SIDE).relative_to(written.root).as_posix()
+    shown = frames.result(name=job.name, family=job.family, video=video)
     if stopped is not None:
         raise PartialJob(rows, warnings, stopped, frames=shown)
     return rows, warnings, shown
@@ -259,7 +263,7 @@ def _outputs(stack: contextlib.ExitStack, job: Job, methods: Sequence[str], run:
         written.add(job.out / SIDE_BY_SIDE)
         sink = stack.enter_context(VideoSink(
             job.out / SIDE_BY_SIDE, fps=info.fps, width=layout.width, height=layout.height,
-            overwrite=run.overwrite))
+            overwrite=run.overwrite, codec=run.video_codec))
         consumers.append(SideBySideWriter(sink, layout, methods, truth=truth))
     return consumers
 

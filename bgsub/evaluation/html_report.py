@@ -1,14 +1,16 @@
 """The report of `bgsub compare` as one self-contained web page, ``report.html``.
 
-Nothing is fetched when the page is opened: the style sheet is inline, the charts are inline
-SVG drawn here, the pictures are ``data:`` URIs (a few frames per input, shrunk; see
+Nothing comes from the network: the style sheet is inline, the charts are inline SVG drawn
+here, the pictures are ``data:`` URIs (a few frames per input, shrunk; see
 :mod:`bgsub.evaluation.report_frames`). Every text that comes from the run (sequence, family and
 method names, the input's path, notes) is HTML-escaped.
 
 The page holds the settings and warnings, bar charts of the F-measure per method (and, for a
 dataset root, per sequence and per family; frames per second when nothing was scored), the
 metrics table (one row per sequence and method, then family and overall means), and per input
-its frames: input, ground truth (when there is one) and each method's mask.
+its frames: input, ground truth (when there is one) and each method's mask, and its
+``side_by_side.mp4``: played in the page when it is H.264, linked otherwise (by a relative
+address, so the page and the videos move together).
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ import html
 import math
 from pathlib import Path
 from typing import Callable, List, Optional, Sequence, Tuple, Union
+from urllib.parse import quote
 
 from bgsub.errors import OutputError
 from bgsub.evaluation.compare_report import TIMING_NOTE, ComparisonReport, ComparisonRow
@@ -188,10 +191,25 @@ def data_uri(picture: Picture) -> str:
     return f"data:{picture.mime};base64,{base64.b64encode(picture.data).decode('ascii')}"
 
 
-def _frames(shown: SequenceFrames) -> str:
-    """One input's frames: a line of labelled pictures per frame."""
+def _video(path: str, codec: Optional[str]) -> str:
+    """The side-by-side video: played in the page when H.264 (browsers play it), else a link
+    (MPEG-4 part 2 plays in desktop players, not in browsers). A relative address: the page
+    plays it from the report folder, never from the network."""
+    src = _e(quote(path))
+    if codec == "h264":
+        return (f'<video controls muted preload="metadata" src="{src}"></video>'
+                f'<div class="note">{_e(path)} (H.264)</div>')
+    return (f'<p class="note">side by side: <a href="{src}">{_e(path)}</a> (MPEG-4 part 2: '
+            "open it in a desktop video player)</p>")
+
+
+def _frames(shown: SequenceFrames, codec: Optional[str] = None) -> str:
+    """One input's frames: a line of labelled pictures per frame, and its side-by-side video
+    (in ``codec``) when there is one."""
     title = shown.name + (f" ({shown.family})" if shown.family else "")
     lines = [f"<h3>{_e(title)}</h3>"]
+    if shown.video:
+        lines.append(_video(shown.video, codec))
     if not shown.frames:
         lines.append('<p class="note">no frame to show</p>')
     for tiles in shown.frames:
@@ -219,7 +237,8 @@ def render_html(report: ComparisonReport) -> str:
         warnings, "<h2>Charts</h2>", *(f"<div>{svg}</div>" for svg in _charts(report)),
         "<h2>Figures</h2>", _table(report),
         f'<ul class="note">{"".join(notes)}</ul>' if notes else "",
-        "<h2>Frames</h2>", *(_frames(shown) for shown in report.frames),
+        "<h2>Frames</h2>",
+        *(_frames(shown, report.settings.get("video_codec")) for shown in report.frames),
         "</body></html>",
     ]
     return "\n".join(part for part in parts if part) + "\n"

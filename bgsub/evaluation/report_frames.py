@@ -47,11 +47,13 @@ class FrameTiles:
 
 @dataclass(frozen=True)
 class SequenceFrames:
-    """The frames shown of one input (sequence ``name`` of family ``family``)."""
+    """The frames shown of one input (sequence ``name`` of family ``family``), and its
+    side-by-side video's path relative to the report folder ("" when none was written)."""
 
     name: str
     family: str
     frames: Tuple[FrameTiles, ...] = field(default_factory=tuple)
+    video: str = ""
 
 
 def encode_picture(image: np.ndarray, *, width: int = THUMB_WIDTH, jpeg: bool = False
@@ -146,6 +148,6 @@ class ReportFrames(Consumer):
         pictures += [(m, encode_picture(result.masks[m])) for m in self.methods]
         return FrameTiles(number, tuple(pictures))
 
-    def result(self, *, name: str, family: str) -> SequenceFrames:
+    def result(self, *, name: str, family: str, video: str = "") -> SequenceFrames:
         """The frames chosen, as :class:`SequenceFrames` of input ``name``."""
-        return SequenceFrames(name, family, tuple(spread(self._held, FRAMES_SHOWN)))
+        return SequenceFrames(name, family, tuple(spread(self._held, FRAMES_SHOWN)), video)

@@ -21,6 +21,7 @@ from bgsub.evaluation.groundtruth import open_ground_truth
 from bgsub.evaluation.html_report import bar_chart_svg
 from bgsub.evaluation.report_frames import FRAMES_SHOWN, ReportFrames, spread
 from bgsub.evaluation.side_by_side import NO_TRUTH_BGR, TileLayout, truth_picture
+from bgsub.io.h264 import h264_available
 from bgsub.io.loop import FrameLoop
 from conftest import SCENE_H, SCENE_W, write_box_clip, write_gt_sequence, write_input_sequence
 
@@ -28,14 +29,15 @@ METHODS = ["framediff", "mog2"]
 
 
 class Page(HTMLParser):
-    """What a test asks of the page: table rows (cells' text), svg elements, images (src, alt)
-    and any address the page would fetch."""
+    """What a test asks of the page: table rows (cells' text), svg elements, images (src, alt),
+    videos (src) and any address other than a data: URI that the page names."""
 
     def __init__(self, text: str) -> None:
         super().__init__()
         self.rows: List[List[str]] = []
         self.svgs = 0
         self.images: List[Tuple[str, str]] = []
+        self.videos: List[str] = []
         self.fetched: List[str] = []
         self._in_body_row = False
         self._in_tbody = False
@@ -54,6 +56,8 @@ class Page(HTMLParser):
             self.svgs += 1
         elif tag == "img":
             self.images.append((attrs.get("src", ""), attrs.get("alt", "")))
+        elif tag == "video":
+            self.videos.append(attrs.get("src", ""))
         for key in ("src", "href"):
             if key in attrs and not attrs[key].startswith("data:"):
                 self.fetched.append(attrs[key])
@@ -95,11 +99,12 @@ def test_report_table_has_one_row_per_method(single: Path) -> None:
     assert all(row[0] == "famA_one" for row in page.rows)
 
 
-def test_report_has_a_chart_and_fetches_nothing(single: Path) -> None:
+def test_report_has_a_chart_and_fetches_nothing_from_the_network(single: Path) -> None:
     text = (single / "report.html").read_text()
     page = Page(text)
     assert page.svgs == 1 and "<rect" in text
-    assert page.fetched == []
+    assert page.fetched == ["side_by_side.mp4"]  # the video beside it, by a relative address
+    assert (single / "side_by_side.mp4").is_file()
     assert "<link" not in text and "<script" not in text
 
 
@@ -164,6 +169,31 @@ def test_dataset_report_charts_per_method_sequence_and_family_and_escapes_names(
     names = [row[0] for row in page.rows]
     assert names[:4] == ["fam<b>&x_one"] * 2 + ["famB_two"] * 2  # the parser unescapes
     assert "overall" in names
+
+
+def test_report_plays_an_h264_side_by_side_and_links_an_mp4v_one(tmp_path: Path) -> None:
+    sequence = write_input_sequence(tmp_path / "seq")
+    compare_methods(sequence, methods=["framediff"], report_dir=tmp_path / "m", masks="none",
+                    video_codec="mp4v")
+    page = Page((tmp_path / "m" / "report.html").read_text())
+    assert page.videos == [] and page.fetched == ["side_by_side.mp4"]
+    if h264_available():
+        compare_methods(sequence, methods=["framediff"], report_dir=tmp_path / "h",
+                        masks="none", video_codec="h264")
+        page = Page((tmp_path / "h" / "report.html").read_text())
+        assert page.videos == ["side_by_side.mp4"]
+
+
+def test_dataset_report_links_each_sequences_video(tmp_path: Path) -> None:
+    root = tmp_path / "data"
+    write_input_sequence(root / "cat" / "one", seed=0)
+    write_input_sequence(root / "cat" / "two", seed=1)
+    out = tmp_path / "out"
+    compare_methods(root, methods=["framediff"], report_dir=out, masks="none",
+                    video_codec="mp4v")
+    page = Page((out / "report.html").read_text())
+    assert page.fetched == ["cat/one/side_by_side.mp4", "cat/two/side_by_side.mp4"]
+    assert all((out / path).is_file() for path in page.fetched)
 
 
 def test_no_report_option_writes_no_page(tmp_path: Path) -> None:

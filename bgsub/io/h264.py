@@ -29,7 +29,7 @@ CHOOSABLE_SUFFIXES = (".mp4", ".mov")
 H264_EXTRA = "pip install 'bgsub[h264]' (PyAV)"
 
 # libx264's default quality; the "veryfast" preset encodes about 4x faster than the default
-# "medium" at the same size (measured in docs/BENCHMARKS.md).
+# "medium" at the same size (docs/BENCHMARKS.md).
 _X264_OPTIONS = {"crf": "23", "preset": "veryfast"}
 
 

@@ -259,7 +259,7 @@ def run(args: argparse.Namespace) -> int:
         common.warn(short)
     written = list(_outputs(args).values())
     common.note(_summary(stats, method, written), quiet=args.quiet)
-    for kind, codec in codecs.items():
+    for kind, codec in codecs.items():  # which picture videos browsers play
         common.note(common.describe_codec(_outputs(args)[kind], codec), quiet=args.quiet)
     if args.json:
         run_extras.print_summary(stats, method=method, outputs=_outputs(args), codecs=codecs)

@@ -201,13 +201,17 @@ def run_job(job: Job, methods: Sequence[str], params: Mapping[str, Mapping[str, 
                                                  notes, warnings, stopped=stopped is not None):
         scorer = None
     rows = _rows(job, methods, loop.stats, scorer, notes)
-    video = ""
-    if run.video and job.out is not None and written.root is not None:
-        video = (job.out / SIDE_BY_SIDE).relative_to(written.root).as_posix()
-    shown = frames.result(name=job.name, family=job.family, video=video)
+    shown = frames.result(name=job.name, family=job.family, video=_video_path(job, run, written))
     if stopped is not None:
         raise PartialJob(rows, warnings, stopped, frames=shown)
     return rows, warnings, shown
+
+
+def _video_path(job: Job, run: RunOptions, written: RunOutputs) -> str:
+    """The job's side-by-side video relative to the report folder ("" when none is written)."""
+    if not run.video or job.out is None or written.root is None:
+        return ""
+    return (job.out / SIDE_BY_SIDE).relative_to(written.root).as_posix()
 
 
 class PartialJob(Exception):

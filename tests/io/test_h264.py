@@ -17,7 +17,7 @@ import pytest
 from bgsub.cli import main
 from bgsub.errors import OutputError, ProcessingError
 from bgsub.io.h264 import h264_available, picture_codec
-from bgsub.io.sinks import VideoSink, VisSink
+from bgsub.io.sinks import VideoSink
 from conftest import write_box_clip
 
 needs_h264 = pytest.mark.skipif(not h264_available(),

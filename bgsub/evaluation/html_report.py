@@ -44,7 +44,8 @@ tr.family td { background: #f4f4f4; } tr.overall td { background: #e8eef8; font-
 figure { display: inline-block; margin: 0 0.4em 0.4em 0; text-align: center; }
 figcaption { font-size: 0.75em; color: #333; }
 img { display: block; image-rendering: pixelated; border: 1px solid #999; }
-.frame { margin-bottom: 0.6em; white-space: nowrap; overflow-x: auto; }
+.frame { margin-bottom: 0.6em; }
+video { display: block; max-width: 100%; background: #000; }
 """
 
 # Chart geometry (pixels).

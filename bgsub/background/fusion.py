@@ -3,10 +3,12 @@
 * :func:`flow_violation_map`: local motion vectors (gated-RBM patches, tracked corners) that
   disagree with the motion the camera predicts for their position, splatted to a per-pixel map
   weighted by their reliability.
-* :func:`still_in_image_map`: pixels that the previous frame explains better unmoved than moved
-  by the camera: an object the camera follows stays put in the image. Combined with the flow
-  violation (the larger of the two), it reaches where patch motion cannot: relative motions
-  beyond the motion readout's range, and pixels too young for the background model.
+* :func:`~bgsub.background.evidence.motion_evidence_map`: the frames' own evidence, aware of what
+  a patch can tell (flat: nothing; an edge: only motion across it): pixels that the previous
+  frame explains clearly better moved by the local vectors, or not moved at all (an object the
+  camera follows), than moved by the camera. Combined with the flow violation (the larger of
+  the two), it reaches where the vectors cannot: colour-only differences, relative motions
+  beyond the readout's range, and pixels too young for the background model.
 * :func:`fuse_masks` multiplies the background score by a gain that rises above 1 where local
   motion violates the camera's and falls below 1 where it confirms it, thresholds it and cleans
   the mask (:func:`clean_mask`: morphology, removal of small blobs, filling of enclosed holes).
@@ -23,13 +25,12 @@ from typing import Optional
 import cv2
 import numpy as np
 
-from bgsub.background.compensated import warp_image
+from bgsub.background.evidence import motion_evidence_map, residual_field
 from bgsub.errors import InputError
 from bgsub.motion.global_motion import apply_homography
 from bgsub.settings import check_settings, setting
 
-__all__ = ["FusionConfig", "Fusion", "flow_violation_map", "still_in_image_map", "fuse_masks",
-           "clean_mask"]
+__all__ = ["FusionConfig", "Fusion", "flow_violation_map", "fuse_masks", "clean_mask"]
 
 
 @dataclass(frozen=True)
@@ -47,9 +48,10 @@ class FusionConfig:
     violation_noise: float = setting(0.0, "... or this many robust standard deviations of the "
                                           "local vectors' disagreement, if more (0 = fixed "
                                           "threshold)", low=0)
-    still_cue: float = setting(1.0, "weight of the evidence that a pixel stays put in the "
-                                    "image while the camera moves (an object the camera "
-                                    "follows; 0 = off)", low=0, high=1)
+    image_cue: float = setting(1.0, "weight of the frames' own evidence: the previous frame "
+                                    "moved by the local vectors, or not at all (an object the "
+                                    "camera follows), explains the current one clearly better "
+                                    "than moved by the camera (0 = off)", low=0, high=1)
     threshold: float = setting(1.0, "foreground where the fused score exceeds this (lower = "
                                     "more foreground)", low=0)
     min_area: int = setting(30, "blobs smaller than this (working-size pixels) are dropped",
@@ -57,6 +59,7 @@ class FusionConfig:
     close: int = setting(9, "morphological closing size (0 or 1 = none)", low=0, high=99)
     fill_holes: int = setting(5000, "holes enclosed by a foreground blob, up to this many "
                                     "working-size pixels, are filled (0 = none)", low=0)
+    slow_dilate: int = setting(0, "EXPERIMENT dilate the slow-learning mask", low=0, high=99)
     heal_below: float = setting(0.25, "background differences where the local motion agrees "
                                       "with the camera (violation below this) are learnt at "
                                       "the normal rate (ghost healing)", low=0)
@@ -74,26 +77,35 @@ class Fusion:
         self.config = config or FusionConfig()
 
     def violation(self, points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
-                  matrix: np.ndarray, prev_gray: np.ndarray, gray: np.ndarray, *,
+                  matrix: np.ndarray, prev: np.ndarray, cur: np.ndarray, *,
+                  fit_weights: Optional[np.ndarray] = None,
                   noise_scale: Optional[float] = None) -> Optional[np.ndarray]:
         """``(h, w) float32`` in [0, 1]: the evidence that a pixel moves otherwise than the
-        camera (``matrix``, (3, 3)): the :func:`flow_violation_map` of the ``(N, 2)`` vectors
-        ``points`` / ``disp`` with ``(N,)`` ``weights`` and the :func:`still_in_image_map` of
-        the two ``(h, w) uint8`` gray frames, whichever is larger. ``noise_scale`` replaces
-        ``violation_noise`` (0: the vectors are one consistent motion, whose spread must not
-        raise the threshold). None when the fusion ignores motion evidence."""
+        camera (``matrix``, (3, 3)), the larger of two:
+
+        * the :func:`flow_violation_map` of the ``(N, 2)`` vectors ``points`` / ``disp`` with
+          ``(N,)`` ``weights`` (0.5 where no vector reports, below it where they agree);
+        * the frames' own :func:`~bgsub.background.evidence.motion_evidence_map` of ``prev`` and
+          ``cur`` ((h, w) or (h, w, 3) uint8: colour differences count), the local vectors
+          (weighted by ``fit_weights``, default ``weights``) as one alternative motion.
+
+        ``noise_scale`` replaces ``violation_noise`` (0: the vectors are one consistent motion,
+        whose spread must not raise the threshold). None when the fusion ignores motion
+        evidence."""
         c = self.config
         if c.flow_boost == 0.0 and c.flow_damp == 0.0:
             return None
         noise = c.violation_noise if noise_scale is None else noise_scale
-        v = flow_violation_map(points, disp, matrix, weights=weights, shape=gray.shape,
+        v = flow_violation_map(points, disp, matrix, weights=weights, shape=cur.shape[:2],
                                threshold=c.violation_threshold, noise_scale=noise)
-        if c.still_cue > 0:
-            # Either kind of motion evidence counts: the cue is near 0 where it has none (a
-            # still camera, the background), so it never lowers the flow's.
-            still = still_in_image_map(prev_gray, gray, matrix)
-            still *= np.float32(c.still_cue)
-            np.maximum(v, still, out=v)
+        if c.image_cue > 0:
+            # Near 0 where the frames hold no evidence (flat areas, edges moving along
+            # themselves, a still camera's background): it never lowers the vectors' opinion.
+            local = residual_field(points, disp, weights if fit_weights is None else fit_weights,
+                                   matrix, cur.shape[:2])
+            image = motion_evidence_map(prev, cur, matrix, residual=local)
+            image *= np.float32(c.image_cue)
+            np.maximum(v, image, out=v)
         return v
 
     def mask(self, score: np.ndarray, violation: Optional[np.ndarray]) -> np.ndarray:
@@ -111,69 +123,10 @@ class Fusion:
         slow = mask > 0
         if violation is not None:
             slow &= ~(violation < self.config.heal_below)
+        c = self.config
+        if c.slow_dilate > 1:
+            slow = cv2.dilate(slow.view(np.uint8), _kernel(cv2.MORPH_ELLIPSE, c.slow_dilate)) > 0
         return slow
-
-
-def still_in_image_map(
-    prev: np.ndarray,
-    cur: np.ndarray,
-    matrix: np.ndarray,
-    *,
-    window: int = 7,
-    centre: float = 0.3,
-    width: float = 0.1,
-) -> np.ndarray:
-    """Where the current frame is better explained by *no* motion than by the camera's.
-
-    An object the camera follows stays put in the image while its background moves with the
-    camera. Per pixel, the mean absolute difference over a ``window`` square between ``cur``
-    and ``prev`` warped by the camera motion (``r_cam``) and between ``cur`` and ``prev`` as it
-    is (``r_id``) give ``s = (r_cam - r_id) / (r_cam + r_id + 4)`` in (-1, 1); the map is a
-    soft step of ``s`` at ``centre``. Where the camera barely moves the two agree and ``s`` is
-    near 0: the map is near 0 (no evidence).
-
-    Parameters
-    ----------
-    prev, cur : (H, W) uint8
-        Consecutive gray frames.
-    matrix : (3, 3) float64
-        The camera motion (previous -> current).
-    window : int
-        Side of the square over which the absolute differences are averaged (px).
-    centre, width : float
-        The soft step: ``1 / (1 + exp(-(s - centre) / width))``, 0.5 at ``s = centre``.
-
-    Returns
-    -------
-    (H, W) float32 in [0, 1]
-
-    Raises
-    ------
-    InputError
-        ``prev`` and ``cur`` are not (H, W) uint8 of one size.
-    """
-    for name, image in (("prev", prev), ("cur", cur)):
-        if getattr(image, "dtype", None) != np.uint8 or image.ndim != 2:
-            raise InputError(f"still_in_image_map takes (H, W) uint8 gray frames; {name} is "
-                             f"{getattr(image, 'dtype', type(image).__name__)} of shape "
-                             f"{np.shape(image)}")
-    if prev.shape != cur.shape:
-        raise InputError(f"still_in_image_map: prev and cur differ in size, {prev.shape} and "
-                         f"{cur.shape}")
-    h, w = cur.shape
-    warped = warp_image(prev, matrix, (w, h), cv2.INTER_LINEAR, cv2.BORDER_REPLICATE)
-    k = (int(window), int(window))
-    r_cam = cv2.blur(cv2.absdiff(cur, warped), k).astype(np.float32)
-    r_id = cv2.blur(cv2.absdiff(cur, prev), k).astype(np.float32)
-    # The 4 gray levels are a noise floor: on flat areas both differences are a few levels of
-    # noise, and their ratio alone would swing from -1 to 1.
-    s = (r_cam - r_id) / (r_cam + r_id + np.float32(4.0))
-    # The soft step 1 / (1 + exp(-(s - centre) / width)), in place.
-    s -= np.float32(centre)
-    s *= np.float32(-1.0 / width)
-    np.exp(np.clip(s, -60.0, 60.0), out=s)
-    s += np.float32(1.0)
-    return np.reciprocal(s, out=s)
 
 
 def flow_violation_map(

@@ -152,3 +152,8 @@ class MotionFrontEnd(ABC):
         """A colour-coded ``(h, w, 3) uint8`` picture of the last measured local motion, or
         None."""
         return None
+
+    def colour_scale(self) -> Optional[float]:
+        """The speed (px/frame) :meth:`flow_colour` shows at full saturation, for the picture's
+        colour-wheel legend; None: no legend."""
+        return None

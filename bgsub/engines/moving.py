@@ -41,7 +41,7 @@ from bgsub.engines.parts import (FrozenModelRegistration, MotionHoldBack, SceneC
                                  SmallRegionRule, StillCameraSwitch)
 from bgsub.engines.threads import SecondThread, limited_threads
 from bgsub.errors import InputError
-from bgsub.io.flowio import draw_flow_arrows
+from bgsub.io.flowio import add_colour_wheel, draw_flow_arrows
 from bgsub.motion.global_motion import apply_homography
 
 __all__ = ["MovingCameraEngine", "register_frontend", "work_size", "draw_debug"]
@@ -105,6 +105,7 @@ class MovingCameraEngine(Engine):
         self.last_status = "ok"
         self._prev: Any = None  # the previous frame as the front end keeps it
         self._prev_gray: Optional[np.ndarray] = None
+        self._prev_work: Optional[np.ndarray] = None
         self._prev_motion: Optional[np.ndarray] = None  # last good fit, (3, 3)
         # The last frame's background update, (frame, learn_slowly, rate): deferred to the next
         # frame, where it runs alongside the motion front end.
@@ -181,6 +182,7 @@ class MovingCameraEngine(Engine):
         mask = self.fusion.mask(score, violation)
         self._pending = (work, self.fusion.learn_slowly(mask, violation), rate)
         self._prev, self._prev_gray = cur, gray
+        self._prev_work = work
         if result.motion.ok:
             self._prev_motion = result.motion.matrix
         self.last_status = status
@@ -224,12 +226,12 @@ class MovingCameraEngine(Engine):
         camera's ``matrix`` (with the fixed violation threshold when ``fixed_threshold``: a
         refused region's vectors are one consistent motion, not noise about the camera's)."""
         violation: list = []
-        prev_gray = self._prev_gray
+        prev = self._prev_work
 
         def evidence() -> None:
             violation.append(self.fusion.violation(
-                result.points, result.disp, result.evidence_weights, matrix, prev_gray, gray,
-                noise_scale=0.0 if fixed_threshold else None))
+                result.points, result.disp, result.evidence_weights, matrix, prev, work,
+                fit_weights=result.weights, noise_scale=0.0 if fixed_threshold else None))
 
         with self.thread.alongside(evidence):
             self.bg.warp(applied, sharp=rate == 0.0)
@@ -255,6 +257,7 @@ class MovingCameraEngine(Engine):
             self.still_switch.reset(work)
         self._prev = cur if cur is not None else self.frontend.frame_data(gray)
         self._prev_gray = gray
+        self._prev_work = work
         self._prev_motion = None
         self.hold_back.reset()
 
@@ -331,14 +334,21 @@ class MovingCameraEngine(Engine):
     def debug_image(self) -> Optional[np.ndarray]:
         """The last frame (working size, scaled to the input) with the motion vectors drawn:
         green = RANSAC inliers, red = outliers, blue = the camera motion on a coarse grid; the
-        foreground mask tints the frame magenta. ``(H, W, 3) uint8``, None before two frames."""
+        foreground mask tints the frame magenta; a front end with a colour picture of its motion
+        has it blended in, with its colour-wheel legend in the bottom-right corner.
+        ``(H, W, 3) uint8``, None before two frames."""
         if self._last_frame is None or self._last is None:
             return None
         res = self._last
         colour = None if res is NO_MOTION else self.frontend.flow_colour(
             self._last_frame.shape[:2])
-        canvas = draw_debug(self._last_frame, self._last_mask, res, colour, self.last_status)
-        return self._to_input_image(canvas)
+        canvas = self._to_input_image(
+            draw_debug(self._last_frame, self._last_mask, res, colour, self.last_status))
+        scale = self.frontend.colour_scale()
+        if colour is None or scale is None:
+            return canvas
+        # The legend speaks of the picture's pixels: the input's, not the working size's.
+        return add_colour_wheel(canvas, scale * canvas.shape[1] / colour.shape[1])
 
 
 def draw_debug(frame: np.ndarray, mask: Optional[np.ndarray], res: MotionResult,

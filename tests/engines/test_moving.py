@@ -116,7 +116,7 @@ def test_an_object_the_camera_follows_is_found(name):
     def f_measure(**params):
         return _scored(_engine_with(name, **params), _followed(), skip=2)[0]
 
-    with_cue, without = f_measure(), f_measure(still_cue=0.0)
+    with_cue, without = f_measure(), f_measure(image_cue=0.0)
     assert with_cue > 0.7, with_cue
     assert with_cue > without + 0.1, (with_cue, without)
 

@@ -130,7 +130,10 @@ class GrbmFrontEnd(MotionFrontEnd):
             return None
         dense = dense_from_patches(self.last_flow, shape=shape,
                                    patch_size=int(self.model.patch_size))
-        return flow_to_color(dense, max_magnitude=max(4.0, self.flow.max_motion / 4))
+        return flow_to_color(dense, max_magnitude=self.colour_scale())
+
+    def colour_scale(self) -> float:
+        return max(4.0, self.flow.max_motion / 4)
 
     def read(self, prev: FramePyramid, cur: FramePyramid, prior: Optional[np.ndarray], *,
              finest: int, fit: CameraFit, stride: Optional[int] = None) -> Reading:

@@ -1,0 +1,208 @@
+"""CDnet F-measure of bgsub engines on the development data, by halves (the tuning protocol).
+
+Every default of the foreground stage is chosen on half **A** of each family / category and
+confirmed on half **B**; both halves are reported (docs/BENCHMARKS.md). A sequence's half is its
+position in its family, sorted by name: even positions (1st, 3rd, ...) are A, odd ones B, so a
+family of one (CDnet traffic) is in A only.
+
+Sets:
+
+* ``generated``: ``../shared/data/generated/CATEGORY/CATEGORY_NN`` (CDnet layout, temporal ROI);
+  F per sequence from the summed counts, category mean of its sequences, overall mean of the five
+  categories;
+* ``real``: ``../shared/data/real/NAME`` (family = the name's prefix), every frame in the
+  temporal ROI but the first; overall = mean of the families;
+* ``samples``: ``bgsub samples`` scenes rendered in memory (every moving category, seeds 0-2,
+  60 frames), F per category over the seeds, mean over the categories (half A = seed 0 and 2,
+  B = seed 1).
+
+Usage (minutes; two sequences at a time with ``--jobs 2``)::
+
+    OMP_NUM_THREADS=1 python benchmarks/accuracy.py --set generated --half A -m grbm
+    OMP_NUM_THREADS=1 python benchmarks/accuracy.py --set real --half all -m grbm -p flow_boost=1
+    OMP_NUM_THREADS=1 python benchmarks/accuracy.py --set generated --oracle-camera -m grbm
+
+The data folder is ``../shared/data`` beside the repository (``BGSUB_DATA`` overrides it).
+``--oracle-camera`` (generated only) replaces the camera-motion fit by the generator's true
+motion (``meta.json``), which separates the foreground stage's errors from the motion's.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import multiprocessing
+import os
+import sys
+import time
+from collections import defaultdict
+from pathlib import Path
+from typing import Dict, List, Optional, Tuple
+
+import cv2
+import numpy as np
+
+from bgsub.engines import create_engine, parse_params
+from bgsub.evaluation.cdnet import count_frame
+from bgsub.motion.global_motion import GlobalMotion, apply_homography
+
+DATA = Path(os.environ.get("BGSUB_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
+REAL_FAMILIES = {"CDnet2014": "CDnet", "BMS26": "BMS-26", "UCSD": "UCSD", "DAVIS2016": "DAVIS"}
+SAMPLE_SEEDS = (0, 1, 2)
+
+
+def sequences(which: str, half: str) -> List[Tuple[str, str]]:
+    """``[(family, path or 'category:seed')]`` of a set's half (``A``, ``B`` or ``all``)."""
+    groups: Dict[str, List[str]] = defaultdict(list)
+    if which == "generated":
+        for seq in sorted((DATA / "generated").glob("*/*_[0-9]*")):
+            groups[seq.parent.name].append(str(seq))
+    elif which == "real":
+        for seq in sorted((DATA / "real").iterdir()):
+            if (seq / "input").is_dir():
+                groups[REAL_FAMILIES[seq.name.split("_")[0]]].append(str(seq))
+    else:
+        from bgsub.samples import CATEGORIES
+        for cat in CATEGORIES:
+            if cat != "static":
+                groups[cat] = [f"{cat}:{seed}" for seed in SAMPLE_SEEDS]
+    out = []
+    for family, members in groups.items():
+        for k, member in enumerate(members):
+            if half == "all" or (k % 2 == 0) == (half == "A"):
+                out.append((family, member))
+    return out
+
+
+class OracleFit:
+    """A stand-in for the engine's camera fit that answers the true motion of the frame being
+    processed (``matrix``, set before each ``apply``); inliers within 1.5 px of it."""
+
+    def __init__(self) -> None:
+        self.matrix = np.eye(3)
+
+    def __call__(self, points, disp, weights, shape) -> GlobalMotion:
+        pts = np.asarray(points, np.float64)
+        err = np.hypot(*(apply_homography(self.matrix, pts) - (pts + disp)).T)
+        return GlobalMotion(self.matrix.copy(), (err < 1.5) & (np.asarray(weights) > 0), True)
+
+
+def true_motions(seq: Path) -> Optional[List[np.ndarray]]:
+    """Frame k-1 -> k camera motion (3, 3) for every frame k (identity for k = 0)."""
+    meta = seq / "meta.json"
+    if not meta.is_file():
+        return None
+    affine = json.loads(meta.read_text())["world_to_view_affine"]
+    full = [np.vstack([np.reshape(a, (2, 3)), [0.0, 0.0, 1.0]]) for a in affine]
+    return [np.eye(3)] + [full[k] @ np.linalg.inv(full[k - 1]) for k in range(1, len(full))]
+
+
+def temporal_roi(seq: Path, n_frames: int) -> Tuple[int, int]:
+    roi = seq / "temporalROI.txt"
+    first, last = ((int(v) for v in roi.read_text().split()[:2]) if roi.is_file()
+                   else (1, n_frames))
+    return max(first, 2), last  # the first frame has no history for any method
+
+
+def run_sequence(task: tuple) -> dict:
+    """Counts and CPU seconds of one engine over one sequence (or one rendered sample)."""
+    method, params, family, member, oracle = task
+    t0 = time.process_time()
+    engine = create_engine(method, **params)
+    if member.count(":") == 1 and not Path(member).exists():
+        counts, n = _run_sample(engine, member)
+    else:
+        counts, n = _run_folder(engine, Path(member), oracle)
+    return dict(family=family, name=Path(member).name, counts=counts, frames=n,
+                cpu=time.process_time() - t0)
+
+
+def _run_folder(engine, seq: Path, oracle: bool) -> Tuple[list, int]:
+    frames = sorted((seq / "input").glob("in*.jpg")) + sorted((seq / "input").glob("in*.png"))
+    first, last = temporal_roi(seq, len(frames))
+    motions = true_motions(seq) if oracle else None
+    fit = None
+    if motions is not None:
+        fit = engine.fit = OracleFit()
+    counts = np.zeros(4, np.int64)
+    for path in frames:
+        k = int(path.stem[2:])
+        if k > last:
+            break
+        if fit is not None:
+            fit.matrix = motions[k - 1]
+        mask = engine.apply(cv2.imread(str(path), cv2.IMREAD_COLOR))
+        if k < first:
+            continue
+        gt = cv2.imread(str(seq / "groundtruth" / f"gt{k:06d}.png"), cv2.IMREAD_GRAYSCALE)
+        if gt is not None:
+            c = count_frame(mask, gt)
+            counts += (c.tp, c.fp, c.fn, c.tn)
+    return counts.tolist(), len(frames)
+
+
+def _run_sample(engine, member: str) -> Tuple[list, int]:
+    from bgsub.samples import SceneSpec, render_frames
+
+    cat, seed = member.split(":")
+    counts = np.zeros(4, np.int64)
+    n = 0
+    for k, (img, gt, _) in enumerate(render_frames(SceneSpec(cat, seed=int(seed), n_frames=60))):
+        mask = engine.apply(img)
+        n += 1
+        if k:
+            c = count_frame(mask, gt)
+            counts += (c.tp, c.fp, c.fn, c.tn)
+    return counts.tolist(), n
+
+
+def f_measure(tp: int, fp: int, fn: int, tn: int = 0) -> float:
+    return 2 * tp / max(2 * tp + fp + fn, 1)
+
+
+def summarise(which: str, results: List[dict]) -> dict:
+    """Per-sequence, per-family and overall F (CDnet averaging; samples sum over seeds)."""
+    by_family: Dict[str, List[dict]] = defaultdict(list)
+    for r in results:
+        by_family[r["family"]].append(r)
+    families = {}
+    for family, rows in by_family.items():
+        if which == "samples":
+            families[family] = f_measure(*np.sum([r["counts"] for r in rows], axis=0))
+        else:
+            families[family] = float(np.mean([f_measure(*r["counts"]) for r in rows]))
+    seqs = {r["name"]: f_measure(*r["counts"]) for r in results}
+    frames = sum(r["frames"] for r in results)
+    return dict(mean=float(np.mean(list(families.values()))), families=families,
+                sequences=seqs, cpu_ms_per_frame=1000 * sum(r["cpu"] for r in results) / frames)
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--set", choices=("generated", "real", "samples"), default="generated")
+    ap.add_argument("--half", choices=("A", "B", "all"), default="all")
+    ap.add_argument("-m", "--method", default="grbm")
+    ap.add_argument("-p", "--param", action="append", default=[], metavar="KEY=VALUE")
+    ap.add_argument("--oracle-camera", action="store_true")
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--match", default="", help="only sequences whose path contains this")
+    ap.add_argument("--json", help="also write the figures to this file")
+    args = ap.parse_args(argv)
+    params = parse_params(args.method, args.param)
+    todo = [(args.method, params, fam, m, args.oracle_camera)
+            for fam, m in sequences(args.set, args.half) if args.match in m]
+    with multiprocessing.get_context("fork").Pool(args.jobs) as pool:
+        results = pool.map(run_sequence, todo, chunksize=1)
+    summary = summarise(args.set, results)
+    label = f"{args.method} {args.set}/{args.half} {' '.join(args.param)}".strip()
+    fams = "  ".join(f"{k} {v:.3f}" for k, v in summary["families"].items())
+    print(f"{label}: mean {summary['mean']:.3f} | {fams} | "
+          f"{summary['cpu_ms_per_frame']:.1f} ms/frame CPU")
+    print("   " + " ".join(f"{k}={v:.3f}" for k, v in summary["sequences"].items()))
+    if args.json:
+        Path(args.json).write_text(json.dumps(dict(args=vars(args), **summary), indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,151 @@
+"""Photometric motion evidence: does a pixel's neighbourhood move otherwise than the camera?
+
+A local motion reading is evidence of an object only as far as the image can tell it apart from
+the camera's motion. :func:`motion_evidence_map` asks the frames themselves: per pixel, it
+compares how well the previous frame, moved by the camera, explains the current one (``r_cam``)
+with how well it does moved by an alternative -- the local motion vectors' field, or no motion at
+all (an object the camera follows stays put in the image) -- (``r_alt``, the better one). The
+evidence is a ramp of ``s = (r_cam - r_alt) / (r_cam + r_alt + noise)``: 0 up to ``start``
+(the camera explains the frame about as well: no evidence), 1 from ``start + span``.
+
+This is aperture-aware by construction: on a flat patch every motion explains the frame alike,
+on a straight edge a shift along the edge changes nothing, so only the component across it can
+make ``r_alt`` smaller; on a corner or texture any disagreement does. A wrong local vector on
+the background explains the frame worse than the camera and gives no evidence at all.
+"""
+
+from __future__ import annotations
+
+from typing import Optional
+
+import cv2
+import numpy as np
+
+from bgsub.errors import InputError
+from bgsub.motion.global_motion import apply_homography
+
+__all__ = ["motion_evidence_map", "residual_field"]
+
+
+def residual_field(points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
+                   matrix: np.ndarray, shape: tuple, *, cell: int = 8) -> np.ndarray:
+    """The local vectors' departure from the camera's motion as a smooth per-pixel field.
+
+    Parameters
+    ----------
+    points, disp : (N, 2) float
+        Positions in the previous frame and their displacements to the current one.
+    weights : (N,) float
+        Reliability of each vector (0 = unused).
+    matrix : (3, 3) float64
+        The camera motion (previous -> current).
+    shape : (H, W)
+        Size of the field, in current-frame coordinates.
+    cell : int
+        Vectors are pooled (weighted mean) in ``cell`` x ``cell`` cells, then interpolated.
+
+    Returns
+    -------
+    (H, W, 2) float32: ``(dx, dy)`` to add to the camera's motion at each pixel (0 where no
+    vector reports).
+    """
+    h, w = int(shape[0]), int(shape[1])
+    gw, gh = (w + cell - 1) // cell, (h + cell - 1) // cell
+    pts = np.asarray(points, np.float64).reshape(-1, 2)
+    wt = np.asarray(weights, np.float64).reshape(-1)
+    res = pts + np.asarray(disp, np.float64).reshape(-1, 2) - apply_homography(matrix, pts)
+    ok = (wt > 0) & np.isfinite(res).all(axis=1)
+    if not ok.any():
+        return np.zeros((h, w, 2), np.float32)
+    cur = pts[ok] + np.asarray(disp, np.float64).reshape(-1, 2)[ok]
+    gx = np.clip((cur[:, 0] // cell).astype(np.intp), 0, gw - 1)
+    gy = np.clip((cur[:, 1] // cell).astype(np.intp), 0, gh - 1)
+    cells = gy * gw + gx
+    den = np.bincount(cells, wt[ok], minlength=gh * gw)
+    grid = np.zeros((gh * gw, 2), np.float32)
+    for axis in (0, 1):
+        num = np.bincount(cells, wt[ok] * res[ok, axis], minlength=gh * gw)
+        grid[:, axis] = np.where(den > 0, num / np.maximum(den, 1e-12), 0.0)
+    up = cv2.resize(grid.reshape(gh, gw, 2), (gw * cell, gh * cell),
+                    interpolation=cv2.INTER_LINEAR)
+    return np.ascontiguousarray(up[:h, :w])
+
+
+def motion_evidence_map(prev: np.ndarray, cur: np.ndarray, matrix: np.ndarray, *,
+                        residual: Optional[np.ndarray] = None, window: int = 7,
+                        noise: float = 4.0, start: float = 0.1,
+                        span: float = 0.4) -> np.ndarray:
+    """Where the current frame is better explained by another motion than the camera's.
+
+    Parameters
+    ----------
+    prev, cur : (H, W) or (H, W, 3) uint8
+        Consecutive frames (colour differences count in every channel).
+    matrix : (3, 3) float64
+        The camera motion (previous -> current).
+    residual : (H, W, 2) float32, optional
+        The local motion's departure from the camera's (:func:`residual_field`); without it
+        only "no motion" is the alternative.
+    window : int
+        Side of the square over which absolute differences are averaged (px).
+    noise : float
+        Noise floor of the averaged differences (gray levels): flat areas' ratio stays small.
+    start, span : float
+        The evidence is ``clip((s - start) / span, 0, 1)``.
+
+    Returns
+    -------
+    (H, W) float32 in [0, 1]: near 0 where the camera's motion explains the frame as well as
+    any alternative (no evidence), near 1 where an alternative explains it clearly better.
+    """
+    _check_frames(prev, cur)
+    h, w = cur.shape[:2]
+    map_x, map_y = _camera_maps(matrix, h, w)
+    k = (int(window), int(window))
+    r_cam = _residual(cur, prev, map_x, map_y, k)
+    r_alt = _mean_absdiff(cur, prev, k)
+    if residual is not None:
+        local = _residual(cur, prev, map_x - residual[:, :, 0], map_y - residual[:, :, 1], k)
+        np.minimum(r_alt, local, out=r_alt)
+    s = (r_cam - r_alt) / (r_cam + r_alt + np.float32(noise))
+    s -= np.float32(start)
+    s *= np.float32(1.0 / span)
+    return np.clip(s, 0.0, 1.0, out=s)
+
+
+def _check_frames(prev: np.ndarray, cur: np.ndarray) -> None:
+    for name, image in (("prev", prev), ("cur", cur)):
+        if getattr(image, "dtype", None) != np.uint8 or image.ndim not in (2, 3):
+            raise InputError(f"motion_evidence_map takes uint8 frames; {name} is "
+                             f"{getattr(image, 'dtype', type(image).__name__)} of shape "
+                             f"{np.shape(image)}")
+    if prev.shape != cur.shape:
+        raise InputError(f"motion_evidence_map: prev and cur differ in shape, {prev.shape} and "
+                         f"{cur.shape}")
+
+
+def _camera_maps(matrix: np.ndarray, h: int, w: int) -> tuple:
+    """``(map_x, map_y)`` (H, W) float32: where each current pixel was in the previous frame
+    under the camera's motion."""
+    inv = np.linalg.inv(np.asarray(matrix, np.float64))
+    xs = np.arange(w, dtype=np.float64)
+    ys = np.arange(h, dtype=np.float64)[:, None]
+    den = inv[2, 0] * xs + inv[2, 1] * ys + inv[2, 2]
+    map_x = ((inv[0, 0] * xs + inv[0, 1] * ys + inv[0, 2]) / den).astype(np.float32)
+    map_y = ((inv[1, 0] * xs + inv[1, 1] * ys + inv[1, 2]) / den).astype(np.float32)
+    return map_x, map_y
+
+
+def _residual(cur: np.ndarray, prev: np.ndarray, map_x: np.ndarray, map_y: np.ndarray,
+              k: tuple) -> np.ndarray:
+    moved = cv2.remap(prev, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    return _mean_absdiff(cur, moved, k)
+
+
+def _mean_absdiff(a: np.ndarray, b: np.ndarray, k: tuple) -> np.ndarray:
+    """(H, W) float32: |a - b| (summed over channels, scaled to one channel's range) averaged
+    over ``k``."""
+    diff = cv2.absdiff(a, b)
+    if diff.ndim == 3:
+        diff = cv2.transform(diff, np.full((1, diff.shape[2]), 1.0 / diff.shape[2]))
+    return cv2.blur(diff.astype(np.float32), k)

@@ -176,6 +176,13 @@ def run_batch(args: argparse.Namespace, *, method: str, params: dict) -> int:
     return 0 if report.ok else 1
 
 
+def is_batch(args: argparse.Namespace) -> bool:
+    """Whether ``args.input`` (the command line's inputs) makes a batch."""
+    from bgsub.batch import inputs
+
+    return inputs.is_batch(args.input)
+
+
 def dispatch(args: argparse.Namespace, *, method: str, params: dict) -> Optional[int]:
     """Run a batch when ``args.input`` (a list) makes one and return its exit status; else set
     ``args.input`` to the one input and return None (a single run)."""

@@ -82,7 +82,7 @@ class StreamBackend:
         self.label = f"camera {int(text)}" if kind == "camera" else text
         self.stall_seconds = float(stall_seconds)
         self.ended: Optional[str] = None
-        self.stalled = False
+        self.stalled = self._waited = False
         self._capture: Optional["cv2.VideoCapture"] = self._open()
         try:
             fps = self._capture.get(cv2.CAP_PROP_FPS)
@@ -130,11 +130,15 @@ class StreamBackend:
         started = time.monotonic()
         with quiet_opencv():
             ok, frame = capture.read()
+        # (After FFmpeg's read timeout the decoder may still hand out a frame it held: the
+        # read that waited is then the last one that gave a frame.)
+        waited = time.monotonic() - started >= 0.9 * self.stall_seconds
         if ok and frame is not None:
             self._read_count += 1
+            self._waited = waited
             return frame
         frames = f"{self._read_count} frame{'s' * (self._read_count != 1)}"
-        self.stalled = time.monotonic() - started >= 0.9 * self.stall_seconds
+        self.stalled = waited or self._waited
         if self.stalled:
             self.ended = (f"{self.label} stalled (no frame for {self.stall_seconds:g} s) after "
                           f"{frames}")

@@ -177,7 +177,10 @@ class MovingCameraEngine(Engine):
         applied = self._to_apply(matrix, gray, register=rate == 0.0 and result.motion.ok)
         score, violation = self._compare(work, gray, result, matrix, applied, rate,
                                          fixed_threshold=refused)
-        if self.scene_cut.is_cut(score, self.bg.age < self.bg.config.min_age, result):
+        unseen = self.bg.age < self.bg.config.min_age
+        if self.roi is not None:  # (what changes outside the region is no new shot)
+            unseen = unseen | ~self.roi.at(gray.shape)
+        if self.scene_cut.is_cut(score, unseen, result):
             self._restart(work, gray, cur)
             self.last_status = "fallback: scene cut"
             return empty

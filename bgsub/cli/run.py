@@ -32,20 +32,21 @@ from bgsub.io.writers import DebugImageWriter, MaskWriter, MotionWriter, Progres
 from bgsub.objects import ObjectWriter, check_objects_output
 
 _DESCRIPTION = """\
-Find the moving objects in a video and write one foreground mask per frame (0 = background,
-255 = foreground). INPUT is a video file, a folder of images (natural order; a CDnet sequence
+Find the moving objects in a video and write one foreground mask per frame (0 = background, 255
+= foreground). INPUT is a video file, a folder of images (natural order; a CDnet sequence
 folder reads its input/ folder), a quoted glob pattern, or a live source opened as OpenCV opens
-it: a camera index (0), a video device (/dev/video0) or a URL (rtsp://..., http://.../clip.mp4),
-read until it ends, --max-frames, or Ctrl-C (a stall or a drop is reported in one line). OUTPUT is a mask video (.mkv or .avi:
-lossless FFV1; .mp4 or .mov: lossy) or, for a name without an extension, a folder of CDnet-style
-binNNNNNN.png masks; other extensions are refused. Masks are numbered by position in INPUT,
-whatever the frames' file names: bin000001.png is the mask of INPUT's first frame (the video's
-first, or the folder's or glob's first image in natural order), and --start/--step keep that
-count (--start 100 --step 2: bin000101.png, bin000103.png, ...). So a whole CDnet input/ folder
-gives bin000123.png for in000123.jpg, but a glob or folder of part of a sequence
-('input/in00002*.jpg') starts again at bin000001.png: to keep the input's numbers, give the
-whole folder with --start/--stop. A mask video holds no frame numbers: to score one written
-with --start/--step, give `bgsub eval` the same --start/--step/--stop.
+it: a camera index (0), a video device (/dev/video0) or a URL (rtsp://...,
+http://.../clip.mp4), read until it ends, --max-frames, or Ctrl-C (a stall or a drop is
+reported in one line). OUTPUT is a mask video (.mkv or .avi: lossless FFV1; .mp4 or .mov:
+lossy) or, for a name without an extension, a folder of CDnet-style binNNNNNN.png masks; other
+extensions are refused. Masks are numbered by position in INPUT, whatever the frames' file
+names: bin000001.png is the mask of INPUT's first frame (the video's first, or the folder's or
+glob's first image in natural order), and --start/--step keep that count (--start 100 --step 2:
+bin000101.png, bin000103.png, ...). So a whole CDnet input/ folder gives bin000123.png for
+in000123.jpg, but a glob or folder of part of a sequence ('input/in00002*.jpg') starts again at
+bin000001.png: to keep the input's numbers, give the whole folder with --start/--stop. A mask
+video holds no frame numbers: to score one written with --start/--step, give `bgsub eval` the
+same --start/--step/--stop.
 
 Outputs are written under a temporary name and renamed when done; after Ctrl-C they hold the
 frames processed so far and are still valid."""

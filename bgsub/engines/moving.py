@@ -210,12 +210,10 @@ class MovingCameraEngine(Engine):
         return result if self.roi is None else self.roi.restrict(result, gray.shape)
 
     def _camera_fit(self, shape: tuple) -> tuple:
-        """``(fit, prior)`` for the pair ending in a frame of working ``shape``: the RANSAC
-        fit and the last good motion, or the known motion (:class:`KnownMotion`) as both; the
-        region of interest's vectors only."""
+        """``(fit, prior)`` for a frame of working ``shape``: the RANSAC fit and the last good
+        motion, or the known motion as both; over the region of interest's vectors only."""
         fit, prior = self.fit, self._prev_motion
-        known = None if self.known_motion is None else self.known_motion.matrix(
-            self._in_shape, shape)
+        known = self.known_motion and self.known_motion.matrix(self._in_shape, shape)
         if known is not None:
             fit, prior = KnownMotion.fit(known, self.camera.ransac_threshold), known
         return (fit, prior) if self.roi is None else (self.roi.restrict_fit(fit), prior)

@@ -508,6 +508,28 @@ def _stream_backend(text: str, *, start: int, stall_seconds: Optional[float]) ->
                          stall_seconds=stall_seconds or DEFAULT_STALL_SECONDS)
 
 
+def _backend(path: Union[PathLike, int], *, start: int, stall_seconds: Optional[float]
+             ) -> Tuple[str, Any]:
+    """``(text, backend)`` of the input ``path``: a live source, a folder, a video or a glob."""
+    if isinstance(path, (int, np.integer)) and not isinstance(path, bool):
+        path = str(int(path))  # a camera index
+    text = given_path(path, what="input", hint="a video file, an image folder or a glob pattern")
+    location = Path(text)
+    stream = _stream_backend(text, start=start, stall_seconds=stall_seconds)
+    if stream is not None:  # a camera, device or URL
+        return text, stream
+    if location.is_dir():
+        return text, _folder_backend(location)
+    if location.is_file():
+        return text, _VideoBackend(location)
+    if glob.has_magic(text):
+        return text, _glob_backend(text)
+    if location.exists():
+        raise InputError(f"{text}: not a video file, image folder or glob pattern (a pipe, "
+                         "socket or other special file)")
+    raise InputError(f"{text}: no such file or folder")
+
+
 #: Largest side of a resized frame (8K video is 7680 wide).
 MAX_SIDE = 16384
 
@@ -586,24 +608,7 @@ def open_source(path: Union[PathLike, int], *, start: int = 0, stop: Optional[in
         # (OpenCV's video writers refuse rates near 0: 0.001 fails, 0.002 works.)
         raise InputError(f"the frame rate must be a number of frames per second from 0.01 to "
                          f"1000, not {fps!r}")
-    if isinstance(path, (int, np.integer)) and not isinstance(path, bool):
-        path = str(int(path))  # a camera index
-    text = given_path(path, what="input", hint="a video file, an image folder or a glob pattern")
-    location = Path(text)
-    backend: Any = _stream_backend(text, start=start, stall_seconds=stall_seconds)
-    if backend is not None:
-        pass  # a camera, device or URL
-    elif location.is_dir():
-        backend = _folder_backend(location)
-    elif location.is_file():
-        backend = _VideoBackend(location)
-    elif glob.has_magic(text):
-        backend = _glob_backend(text)
-    elif location.exists():
-        raise InputError(f"{text}: not a video file, image folder or glob pattern (a device "
-                         "or other special file)")
-    else:
-        raise InputError(f"{text}: no such file or folder")
+    text, backend = _backend(path, start=start, stall_seconds=stall_seconds)
 
     total = backend.total
     if total is not None and start >= total:

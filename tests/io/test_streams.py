@@ -150,3 +150,17 @@ def test_batch_of_urls_writes_one_output_each(tmp_path):
                      "--jobs", "1", "-q"])
     assert code == 0
     assert len(_frames_of(out / "a.mkv")) == len(_frames_of(out / "b.mkv")) == 8
+
+
+def test_batch_passes_the_stall_timeout_to_each_url(tmp_path, capsys):
+    good, bad = tmp_path / "good", tmp_path / "bad"
+    good.mkdir()
+    bad.mkdir()
+    write_mp4_clip(good / "a.mp4", n=8)
+    write_box_clip(bad / "b.mkv", n=40)
+    with serve_folder(good) as one, serve_folder(bad, cut_at=0.5, hold=4.0) as two:
+        code = main(["run", one + "a.mp4", two + "b.mkv", "-o", str(tmp_path / "out"), "-m",
+                     "mog2", "--jobs", "1", "--stall-timeout", "1", "-q"])
+    assert code == 0
+    assert "stalled (no frame for 1 s)" in capsys.readouterr().err
+    assert (tmp_path / "out" / "a.mkv").is_file() and (tmp_path / "out" / "b.mkv").is_file()

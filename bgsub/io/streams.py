@@ -7,17 +7,24 @@ and handed out first, and the one pass over it reads on until the stream ends, t
 ``stop``, or the caller stops (Ctrl-C). Its length is unknown (``VideoInfo.frame_count`` is
 None). A read that gives no frame for ``stall_seconds`` ends the pass as a stall; a stream that
 ends before the length it declares (a file over HTTP) or that ends at all (a camera, RTSP) is
-reported by :attr:`StreamBackend.ended`, one line.
+reported by :attr:`StreamBackend.ended`, one line. Frames are read in a thread of the source's
+own, so a stall is timed by bgsub (not by the backend) and Ctrl-C during a stall finishes the
+outputs at once (the process ends when OpenCV's read gives up, a second after the stall
+timeout).
 """
 
 from __future__ import annotations
 
+import atexit
 import math
 import os
+import queue
 import re
 import stat
+import threading
 import time
 import urllib.parse
+import weakref
 from pathlib import Path
 from typing import Iterator, Optional, Tuple
 
@@ -67,6 +74,68 @@ def _plausible_fps(fps: float) -> bool:
     return math.isfinite(fps) and 0 < fps <= 1000
 
 
+class _Reader(threading.Thread):
+    """Reads a capture in a thread of its own and hands the frames over in a small queue (None
+    at the end), so that waiting for a frame can time out and Ctrl-C is seen at once, however
+    long OpenCV blocks in ``read()``. The thread releases the capture when it stops."""
+
+    def __init__(self, capture: "cv2.VideoCapture") -> None:
+        super().__init__(name="bgsub-stream", daemon=True)
+        self.capture = capture
+        self.queue: "queue.Queue[Optional[np.ndarray]]" = queue.Queue(maxsize=4)
+        self.stop = threading.Event()
+        _running.add(self)
+
+    def finish(self, timeout: float) -> None:
+        """Stop, and wait up to ``timeout`` seconds for the thread to end."""
+        self.stop.set()
+        if self.is_alive():
+            self.join(timeout)
+
+    def run(self) -> None:
+        try:
+            while not self.stop.is_set():
+                with quiet_opencv():
+                    ok, frame = self.capture.read()
+                self._put(frame if ok and frame is not None else None)
+                if not ok or frame is None:
+                    return
+        finally:
+            self.capture.release()
+
+    def _put(self, item: Optional[np.ndarray]) -> None:
+        while not self.stop.is_set():
+            try:
+                self.queue.put(item, timeout=0.1)
+                return
+            except queue.Full:
+                continue
+
+    def get(self, timeout: float) -> Tuple[bool, Optional[np.ndarray]]:
+        """``(True, frame or None at the end)``, or ``(False, None)`` when no frame came within
+        ``timeout`` seconds."""
+        deadline = time.monotonic() + timeout
+        while True:
+            try:
+                return True, self.queue.get(timeout=min(0.1, max(deadline - time.monotonic(),
+                                                                 0.001)))
+            except queue.Empty:
+                if time.monotonic() >= deadline:
+                    return False, None
+
+
+# Readers not yet finished: a thread still inside OpenCV when the interpreter exits aborts the
+# process ("FATAL: exception not rethrown"), so they are waited for at exit (a source used
+# without being closed).
+_running: "weakref.WeakSet[_Reader]" = weakref.WeakSet()
+
+
+@atexit.register
+def _finish_readers() -> None:
+    for reader in list(_running):
+        reader.finish(timeout=30.0)
+
+
 class StreamBackend:
     """One live source, open from construction to the end of its one pass (or :meth:`close`).
 
@@ -82,18 +151,21 @@ class StreamBackend:
         self.label = f"camera {int(text)}" if kind == "camera" else text
         self.stall_seconds = float(stall_seconds)
         self.ended: Optional[str] = None
-        self.stalled = self._waited = False
-        self._capture: Optional["cv2.VideoCapture"] = self._open()
+        self.stalled = False
+        capture = self._open()
+        fps = capture.get(cv2.CAP_PROP_FPS)
+        count = int(capture.get(cv2.CAP_PROP_FRAME_COUNT))
+        self._declared = count if kind == "url" and count > 0 else None
+        self._read_count = 0
+        self._reader: Optional[_Reader] = _Reader(capture)
+        self._reader.start()
         try:
-            fps = self._capture.get(cv2.CAP_PROP_FPS)
-            count = int(self._capture.get(cv2.CAP_PROP_FRAME_COUNT))
-            self._declared = count if kind == "url" and count > 0 else None
+            frame = self._next()
             for index in range(start):
-                if not self._capture.grab():
+                if frame is None:
                     raise InputError(f"{self.label}: the stream ended after {index} frames, "
                                      f"before start frame {start}")
-            self._read_count = start
-            frame = self._read(self._capture)
+                frame = self._next()
             if frame is None:
                 within = f" within {self.stall_seconds:g} s" if self.stalled else ""
                 raise InputError(f"{self.label}: opened, but it gave no frame{within}")
@@ -107,7 +179,9 @@ class StreamBackend:
         self.fps = DEFAULT_FPS if self.fps_is_default else float(fps)
 
     def _open(self) -> "cv2.VideoCapture":
-        timeout = int(round(self.stall_seconds * 1000))
+        # FFmpeg gives up a second after the stall timeout: a stall is reported as one, and
+        # the reader thread ends soon after (close() waits for it).
+        timeout = int(round(self.stall_seconds * 1000 + 1000))
         with quiet_opencv():
             if self.stream == "camera":
                 capture = cv2.VideoCapture(int(self.text))
@@ -124,21 +198,16 @@ class StreamBackend:
             raise InputError(f"{self.label}: cannot open it ({why[self.stream]})")
         return capture
 
-    def _read(self, capture: "cv2.VideoCapture") -> Optional[np.ndarray]:
+    def _next(self) -> Optional[np.ndarray]:
         """The next frame, or None at the end; sets :attr:`ended` when the stream stalled or
         ended early."""
-        started = time.monotonic()
-        with quiet_opencv():
-            ok, frame = capture.read()
-        # (After FFmpeg's read timeout the decoder may still hand out a frame it held: the
-        # read that waited is then the last one that gave a frame.)
-        waited = time.monotonic() - started >= 0.9 * self.stall_seconds
-        if ok and frame is not None:
+        came, frame = (False, None) if self._reader is None else self._reader.get(
+            self.stall_seconds)
+        if frame is not None:
             self._read_count += 1
-            self._waited = waited
             return frame
         frames = f"{self._read_count} frame{'s' * (self._read_count != 1)}"
-        self.stalled = waited or self._waited
+        self.stalled = not came
         if self.stalled:
             self.ended = (f"{self.label} stalled (no frame for {self.stall_seconds:g} s) after "
                           f"{frames}")
@@ -147,21 +216,28 @@ class StreamBackend:
         elif self._read_count < self._declared - max(2, self._declared // 50):
             self.ended = (f"{self.label} dropped after {frames} of the {self._declared} it "
                           "declares")
+        self._stop()
         return None
 
     def describe(self, index: int) -> str:
         return f"frame {index} of {self.label}"
 
+    def _stop(self) -> None:
+        """Stop reading (the reader releases the capture once OpenCV's read returns)."""
+        if self._reader is not None:
+            self._reader.stop.set()
+
     def close(self) -> None:
-        """Release the capture (a pass in progress releases it when it ends)."""
-        capture, self._capture = self._capture, None
-        if capture is not None:
-            capture.release()
+        """Stop reading and wait for the reader thread to release the capture: at most a
+        little longer than the stall timeout (a stalled URL's case). Called when the source is
+        closed, after the outputs are finished."""
+        reader, self._reader = self._reader, None
+        if reader is not None:
+            reader.finish(self.stall_seconds + 2.0)
 
     def frames(self, start: int, stop: Optional[int], step: int
                ) -> Iterator[Tuple[int, np.ndarray]]:
-        capture, self._capture = self._capture, None
-        if capture is None:
+        if self._reader is None or self.held_frame is None:
             raise InputError(f"{self.label}: a live source is read once; open it again for "
                              "another pass")
         frame, self.held_frame = self.held_frame, None
@@ -170,9 +246,9 @@ class StreamBackend:
             while frame is not None and (stop is None or index < stop):
                 yield index, frame
                 for _ in range(step - 1):
-                    if self._read(capture) is None:
+                    if self._next() is None:
                         return
-                frame = self._read(capture)
+                frame = self._next()
                 index += step
         finally:
-            capture.release()
+            self._stop()  # (close() waits for the reader, once the outputs are finished)

@@ -164,3 +164,23 @@ def test_batch_passes_the_stall_timeout_to_each_url(tmp_path, capsys):
     assert code == 0
     assert "stalled (no frame for 1 s)" in capsys.readouterr().err
     assert (tmp_path / "out" / "a.mkv").is_file() and (tmp_path / "out" / "b.mkv").is_file()
+
+
+def test_ctrl_c_during_a_stall_leaves_valid_partial_outputs(tmp_path, capsys):
+    import os
+    import signal
+    import threading
+
+    write_box_clip(tmp_path / "long.mkv", n=300)  # (past FFmpeg's probe before the cut)
+    out = tmp_path / "masks.mkv"
+    with serve_folder(tmp_path, cut_at=0.6, hold=10.0) as base:
+        timer = threading.Timer(3.0, os.kill, (os.getpid(), signal.SIGINT))
+        timer.start()
+        try:
+            code = main(["run", base + "long.mkv", "-o", str(out), "-m", "mog2",
+                         "--stall-timeout", "5", "-q"])
+        finally:
+            timer.cancel()
+    assert code == 130
+    assert "partial (interrupted) but valid" in capsys.readouterr().err
+    assert 100 < len(_frames_of(out)) < 300

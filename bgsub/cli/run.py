@@ -271,7 +271,7 @@ def run(args: argparse.Namespace) -> int:
     short = source.truncation()  # decoding ended well before the end the video declares
     if short:
         common.warn(short)
-    motion = run_inputs.motion_note(engine, stats.frames)
+    motion = run_inputs.motion_note(engine)
     if motion:
         common.note(motion, quiet=args.quiet)
     written = list(_outputs(args).values())

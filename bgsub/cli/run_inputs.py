@@ -69,12 +69,14 @@ def engine_params(args: argparse.Namespace, method: str, params: Dict[str, Any])
     return params
 
 
-def check_inputs(params: Dict[str, Any], *, width: int, height: int) -> Optional[Any]:
-    """Read the region of interest and the known camera motion now, so a bad file stops the
-    run before any frame is processed: the region scaled to ``width`` x ``height`` frames."""
+def check_inputs(params: Dict[str, Any], *, width: int, height: int) -> Dict[str, Any]:
+    """``params`` with the region of interest and the known camera motion read now (the region
+    also scaled to ``width`` x ``height`` frames), so a bad file stops the run before any frame
+    is processed."""
     from bgsub.engines.parts import KnownMotion
     from bgsub.engines.roi import RegionOfInterest
 
+    params = dict(params)
     if params.get("roi"):
         region = RegionOfInterest.from_value(params["roi"])
         region.at((height, width))
@@ -84,7 +86,7 @@ def check_inputs(params: Dict[str, Any], *, width: int, height: int) -> Optional
     return params
 
 
-def motion_note(engine: Any, frames: int) -> Optional[str]:
+def motion_note(engine: Any) -> Optional[str]:
     """A line when ``--motion-in`` ended before the input: the frames after were estimated."""
     known = getattr(engine, "known_motion", None)
     if known is None or not known.frames_past_end:

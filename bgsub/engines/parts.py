@@ -334,10 +334,10 @@ class StillCameraSwitch:
 
 #: What the ``known_motion`` parameter of the moving-camera engines means (``bgsub methods``).
 KNOWN_MOTION_HELP = ("camera motion to use instead of fitting it: an (N, 3, 3) .npy file as "
-                     "--motion writes it (entry k maps input pixels of the k-th frame given "
-                     "before to the k-th; 0-based, entry 0 unused) or, from Python, the array; "
-                     "entries all NaN, and frames past its end, are fitted as usual (empty = "
-                     "fit every frame)")
+                     "--motion writes it (entry k maps input pixels of frame k-1 to frame k, "
+                     "frames counted from 0 as the engine is given them) or, from Python, the "
+                     "array; entries all NaN, and frames past its end, are fitted as usual "
+                     "(empty = fit every frame)")
 
 
 def _load_motion(path: str) -> np.ndarray:

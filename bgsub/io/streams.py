@@ -34,7 +34,7 @@ import numpy as np
 from bgsub.errors import InputError
 from bgsub.io.sources import DEFAULT_FPS, quiet_opencv
 
-__all__ = ["DEFAULT_STALL_SECONDS", "StreamBackend", "stream_kind", "stream_name"]
+__all__ = ["DEFAULT_STALL_SECONDS", "StreamBackend", "is_live", "stream_kind", "stream_name"]
 
 #: Seconds a live source may give no frame before it is taken as stalled.
 DEFAULT_STALL_SECONDS = 10.0
@@ -55,6 +55,16 @@ def stream_kind(text: str) -> Optional[str]:
     except (OSError, ValueError):
         return None
     return "device" if stat.S_ISCHR(mode) else None
+
+
+def is_live(text: str) -> bool:
+    """Whether ``text`` names a live source, whose frames differ each time it is read: a
+    camera, a device, or a URL other than ``http(s)``/``ftp``/``file`` (``rtsp://``, ``udp://``
+    ...); a file over HTTP is the same file each time."""
+    kind = stream_kind(text)
+    if kind != "url":
+        return kind is not None
+    return urllib.parse.urlsplit(text).scheme.lower() not in {"http", "https", "ftp", "file"}
 
 
 def stream_name(text: str) -> str:

@@ -11,7 +11,7 @@ from conftest import serve_folder, write_box_clip, write_mp4_clip
 from bgsub.cli import main
 from bgsub.errors import InputError
 from bgsub.io.sources import open_source
-from bgsub.io.streams import stream_kind, stream_name
+from bgsub.io.streams import is_live, stream_kind, stream_name
 
 
 @pytest.fixture
@@ -40,6 +40,11 @@ def test_stream_kind_names_cameras_urls_and_devices(tmp_path):
     assert stream_kind(str(tmp_path)) is None
     assert stream_name("http://host/a/clip.mp4?key=1") == "clip"
     assert stream_name("1") == "camera1"
+
+
+def test_live_sources_are_cameras_devices_and_streaming_urls():
+    assert is_live("0") and is_live("/dev/null") and is_live("rtsp://cam.local/live")
+    assert not is_live("http://host/clip.mp4") and not is_live("https://host/clip.mp4")
 
 
 def test_url_is_read_once_as_a_stream_of_unknown_length(clip_url, tmp_path):

@@ -53,9 +53,10 @@ def test_license_is_mit_and_declared():
 def test_declared_dependencies_are_the_imported_ones():
     project = _pyproject()["project"]
     declared = {_MODULE_OF[_distribution(r)] for r in project["dependencies"]}
-    # The `train` extra (imported only to retrain the natural model) and the `dask` extra
-    # (imported only for --scheduler).
-    optional = {"skimage", "distributed"}
+    # The `train` extra (imported only to retrain the natural model), the `dask` extra
+    # (imported only for --scheduler) and the `h264` extra (PyAV, for H.264 picture videos).
+    optional = {"skimage", "distributed", "av"}
+    assert project["optional-dependencies"]["h264"] == ["av>=14"]
     assert _imported_third_party() - optional == declared
 
 

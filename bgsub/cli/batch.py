@@ -208,6 +208,9 @@ def dispatch(args: argparse.Namespace, *, method: str, params: dict) -> Optional
             if value:
                 raise InputError(f"{flag} is for a single input; a batch writes --summary "
                                  "FILE.json")
+        if getattr(args, "codec", "auto") != "auto":
+            raise InputError("--codec is for a single input; a batch writes its .mp4 videos "
+                             "in H.264 when PyAV is installed, else in mp4v")
         return run_batch(args, method=method, params=params)
     for flag, value in (("--scheduler", args.scheduler), ("--summary", args.summary)):
         if value:

@@ -46,6 +46,28 @@ def add_output_options(parser: argparse.ArgumentParser, *,
     parser.add_argument("-q", "--quiet", action="store_true", help=quiet_help)
 
 
+def add_codec_option(parser: Any) -> None:
+    """``--codec {auto,h264,mp4v}``: the codec of ``.mp4`` / ``.mov`` picture videos."""
+    from bgsub.io.h264 import CODEC_CHOICES, H264_EXTRA
+
+    parser.add_argument("--codec", choices=CODEC_CHOICES, default="auto",
+                        help="codec of .mp4/.mov picture videos: H.264 (plays in web browsers; "
+                             f"needs PyAV: {H264_EXTRA}) or MPEG-4 part 2 (mp4v, desktop "
+                             "players); auto: H.264 when PyAV is installed (default)")
+
+
+def describe_codec(path: Any, codec: str) -> str:
+    """``"overlay.mp4: H.264"``: the one-line note saying what a picture video was written in."""
+    from bgsub.io.h264 import H264_EXTRA
+
+    if codec == "h264":
+        return f"{path}: H.264 video (plays in web browsers)"
+    if codec == "mp4v":
+        return (f"{path}: MPEG-4 part 2 video (mp4v; for H.264, which web browsers play: "
+                f"{H264_EXTRA})")
+    return f"{path}: {codec} video"
+
+
 def progress(iterable: Iterable[Any], *, total: Optional[int] = None, desc: str = "",
              quiet: bool = False, unit: str = "frame") -> Iterable[Any]:
     """Wrap ``iterable`` in a tqdm bar on stderr, off when ``quiet`` or stderr is no terminal."""

@@ -7,7 +7,8 @@ from pathlib import Path
 from typing import Any, Dict, List
 
 from bgsub.cli import batch
-from bgsub.cli.common import add_output_options, add_source_options, note, source_kwargs, warn
+from bgsub.cli.common import (add_codec_option, add_output_options, add_source_options,
+                              describe_codec, note, source_kwargs, warn)
 from bgsub.errors import InputError
 
 _DESCRIPTION = """\
@@ -22,9 +23,14 @@ method, then per-family means and the mean over families; the family of root/NAM
 NAME before its first '_', e.g. BMS26_cars1 -> BMS26), or any video / image folder / glob (with
 --gt for scores).
 
-REPORT_DIR receives report.txt (also printed), report.csv and report.json; the masks of each
-method (METHOD/binNNNNNN.png, or METHOD.mkv with --masks mkv); and side_by_side.mp4 (input and
-one labelled mask per method). For a dataset root, masks and videos go to REPORT_DIR/SEQUENCE/.
+REPORT_DIR receives report.txt (also printed), report.csv and report.json; report.html, one
+self-contained page to open in a browser (the table, charts of the F-measure per method, and per
+sequence and family for a dataset root, and a few frames of each input: input, ground truth,
+each method's mask); the masks of each method (METHOD/binNNNNNN.png, or METHOD.mkv with --masks
+mkv); and side_by_side.mp4 (input, ground truth when there is one, and one labelled mask per
+method). The ground-truth tiles show CDnet's labels as gray levels: 255 (moving) white, 170
+(unknown) light grey, 85 (outside the ROI) mid grey, 50 (shadow) dark grey; dark blue where a
+frame has no ground truth. For a dataset root, masks and videos go to REPORT_DIR/SEQUENCE/.
 An existing REPORT_DIR that is not empty needs --overwrite, which removes the outputs of the
 compare run that wrote there before (those its report.json lists or, without one, the files
 named as compare names them) once the input is accepted; other files stay.
@@ -90,6 +96,9 @@ def register(subparsers: Any) -> None:
                               "none (default: png)")
     outputs.add_argument("--no-video", action="store_true",
                          help="do not write side_by_side.mp4 (faster on datasets)")
+    add_codec_option(outputs)
+    outputs.add_argument("--no-report", action="store_true",
+                         help="do not write report.html (the page with charts and frames)")
     outputs.add_argument("--tile-height", type=int, default=180, metavar="PX",
                          help="height of each tile of side_by_side.mp4; frames are never "
                               "enlarged and the file size grows with it (default: 180)")
@@ -157,6 +166,7 @@ def run(args: argparse.Namespace) -> int:
             skip_first=args.skip_first,
             ignore_roi_bmp=None if args.roi_bmp is None else not args.roi_bmp,
             max_frames=args.max_frames, masks=args.masks, video=not args.no_video,
+            html=not args.no_report, video_codec=args.codec,
             tile_height=args.tile_height,
             overwrite=args.overwrite, quiet=args.quiet, **source_kwargs(args),
             workers=batch.jobs_and_threads(args)[0], scheduler=args.scheduler,
@@ -174,4 +184,8 @@ def _show(report: Any, args: argparse.Namespace, what: str) -> None:
     print(report.to_text())  # the result itself: printed with --quiet too
     for warning in report.warnings:  # e.g. an input shorter than its ground truth
         warn(warning)
-    note(f"{what} written to {Path(args.output) / 'report.txt'} (.csv, .json)", quiet=args.quiet)
+    also = ".csv, .json" if args.no_report else ".csv, .json, .html"
+    note(f"{what} written to {Path(args.output) / 'report.txt'} ({also})", quiet=args.quiet)
+    codec = report.settings.get("video_codec")
+    if codec:
+        note(describe_codec("side_by_side.mp4", codec), quiet=args.quiet)

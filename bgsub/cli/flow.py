@@ -10,9 +10,10 @@ from typing import Any, List, Optional, Tuple
 
 import numpy as np
 
-from bgsub.cli.common import (add_output_options, add_source_options, check_distinct,
-                              is_binary_model, model_files, note, progress, source_kwargs, warn,
-                              warn_if_binary_model, warn_if_binary_model_on_source)
+from bgsub.cli.common import (add_codec_option, add_output_options, add_source_options,
+                              check_distinct, describe_codec, is_binary_model, model_files, note,
+                              progress, source_kwargs, warn, warn_if_binary_model,
+                              warn_if_binary_model_on_source)
 from bgsub.errors import InputError, OutputError
 from bgsub.motion.config import FlowConfig
 
@@ -34,7 +35,9 @@ one level, no fitting. The random-dot models (dots-translation, dots-rotation, .
 random-dot images with max-flow by default, as the paper does; other models with patch.
 
 Colour code (Middlebury): hue = direction (right red, down yellow, left cyan, up blue/violet),
-saturation = speed (white = still), black = unknown."""
+saturation = speed (white = still), black = unknown. Each colour picture carries its legend in
+the bottom-right corner (unless --no-legend): the colour wheel, whose rim moves at the speed
+written beside it (--max-magnitude, or the picture's largest)."""
 
 _EPILOG = """\
 examples:
@@ -76,6 +79,8 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--max-magnitude", type=float, default=None, metavar="PX",
                         help="speed shown fully saturated, above 0 (default: the largest in each "
                              "picture)")
+    parser.add_argument("--no-legend", action="store_true",
+                        help="no colour wheel and speed scale in the corner of colour pictures")
     parser.add_argument("--model", default="natural", metavar="M",
                         help="shipped model name (natural, dots-translation, ...) or a .npz path "
                              "(default: natural)")
@@ -95,6 +100,7 @@ def register(subparsers: Any) -> None:
                      help="patch grid step, at least 1 (at most the patch size with max-flow) "
                           f"(default {_FLOW.stride}, or the patch size if smaller; smaller = finer "
                           "field, slower)")
+    add_codec_option(parser)
     add_source_options(parser)
     add_output_options(parser, quiet_help="no progress bar and no notes on stderr (warnings "
                                           "and errors are still printed)")
@@ -165,10 +171,10 @@ def _check_options(args: argparse.Namespace) -> None:
         if args.vis is not None:
             raise InputError("--vis is for an image pair; for a video, -o is already the picture video")
     else:
-        ignored = _given(args, _VIDEO_ONLY)
+        ignored = _given(args, (*_VIDEO_ONLY, ("codec", "auto")))
         if ignored:
-            raise InputError(f"{', '.join(ignored)}: frame range and resizing apply to a video "
-                             "input, not to an image pair")
+            raise InputError(f"{', '.join(ignored)}: frame range, resizing and the video "
+                             "codec apply to a video input, not to an image pair")
         # For a pair the .flo file holds no picture: without --vis these would silently do nothing.
         unused = _given(args, _PICTURE_ONLY) if args.vis is None else []
         if unused:
@@ -182,7 +188,8 @@ def _check_options(args: argparse.Namespace) -> None:
 
 # Options (with their defaults) that only a video input uses, and that only a picture uses.
 _VIDEO_ONLY = (("start", 0), ("stop", None), ("step", 1), ("scale", None), ("width", None))
-_PICTURE_ONLY = (("arrows", False), ("arrow_step", _ARROW_STEP), ("max_magnitude", None))
+_PICTURE_ONLY = (("arrows", False), ("arrow_step", _ARROW_STEP), ("max_magnitude", None),
+                 ("no_legend", False))
 
 
 def _given(args: argparse.Namespace, options: Tuple[Tuple[str, Any], ...]) -> List[str]:
@@ -284,7 +291,7 @@ def _run_pair(args: argparse.Namespace, model: Any) -> int:
     write_flo(args.output, flow, overwrite=args.overwrite)
     if args.vis is not None:
         picture = flow_picture(flow, image=frame1, arrows=args.arrows, step=args.arrow_step,
-                               max_magnitude=args.max_magnitude)
+                               max_magnitude=args.max_magnitude, legend=not args.no_legend)
         write_image(args.vis, picture)
     known = np.isfinite(flow).all(axis=2)
     if known.any():
@@ -327,13 +334,14 @@ def _run_video(args: argparse.Namespace, model: Any) -> int:
         prior = None
         written = 0
         with VideoSink(args.output, fps=fps, width=info.width, height=info.height,
-                       overwrite=args.overwrite) as sink:
+                       overwrite=args.overwrite, codec=args.codec) as sink:
             for _, frame in progress(source, total=info.frame_count, desc="flow", quiet=args.quiet):
                 if previous is not None:
                     # The camera rarely changes motion abruptly: the next pair starts from it.
                     dense, prior = _estimate(previous, frame, model, args, prior=prior)
                     sink.write(flow_picture(dense, image=previous, arrows=args.arrows,
-                                            step=args.arrow_step, max_magnitude=args.max_magnitude))
+                                            step=args.arrow_step, max_magnitude=args.max_magnitude,
+                                            legend=not args.no_legend))
                     written += 1
                 previous = frame
     short = source.truncation()  # decoding ended well before the end the video declares
@@ -343,4 +351,5 @@ def _run_video(args: argparse.Namespace, model: Any) -> int:
         raise InputError(f"{args.input}: needs at least two frames for a flow video")
     note(f"{written} flow pictures (one per consecutive frame pair) written to {args.output}",
          quiet=args.quiet)
+    note(describe_codec(args.output, sink.codec), quiet=args.quiet)
     return 0

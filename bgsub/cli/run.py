@@ -96,6 +96,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--flow-vis", metavar="VIDEO", default=None,
                         help="also write the engine's picture of the motion it saw (engines "
                              "with debug_image, such as grbm)")
+    common.add_codec_option(parser)
     parser.add_argument("--motion", metavar="FILE.npy", default=None,
                         help="also write the estimated camera motion: (N, 3, 3) float64, entry "
                              "k maps pixels of frame k-1 to frame k, as bgsub samples' "
@@ -192,19 +193,24 @@ def _eval_notice(args: argparse.Namespace, renumbered: bool) -> Optional[str]:
 
 
 def _open_writers(stack: contextlib.ExitStack, args: argparse.Namespace,
-                  info: VideoInfo, objects: Optional[ObjectWriter]) -> list:
+                  info: VideoInfo, objects: Optional[ObjectWriter], codecs: dict) -> list:
     """Open the outputs asked for (in ``stack``, so a failure to open one closes the others)
-    and return their writers for the frame loop."""
+    and return their writers for the frame loop; the codec of each picture video goes to
+    ``codecs`` (``{"vis": "h264"}``)."""
     size = dict(width=info.width, height=info.height)
     masks = stack.enter_context(open_mask_sink(args.output, **size, fps=info.fps,
                                                overwrite=args.overwrite))
     writers: list = [MaskWriter(masks)] + ([objects] if objects else [])  # (tracks before --vis)
     if args.vis:
-        writers.append(run_extras.vis_writer(stack.enter_context(
-            VisSink(args.vis, **size, fps=info.fps, overwrite=args.overwrite)), objects))
+        vis = stack.enter_context(VisSink(args.vis, **size, fps=info.fps,
+                                          overwrite=args.overwrite, codec=args.codec))
+        codecs["vis"] = vis.codec
+        writers.append(run_extras.vis_writer(vis, objects))
     if args.flow_vis:
-        writers.append(DebugImageWriter(stack.enter_context(
-            VideoSink(args.flow_vis, fps=info.fps, overwrite=args.overwrite))))
+        flow_vis = stack.enter_context(VideoSink(args.flow_vis, fps=info.fps,
+                                                 overwrite=args.overwrite, codec=args.codec))
+        codecs["flow_vis"] = flow_vis.codec
+        writers.append(DebugImageWriter(flow_vis))
     if args.motion:
         writers.append(MotionWriter(stack.enter_context(
             MotionSink(args.motion, overwrite=args.overwrite))))
@@ -256,8 +262,9 @@ def run(args: argparse.Namespace) -> int:
         stack.enter_context(source)
         if callable(getattr(engine, "close", None)):  # (a plugin may not subclass Engine)
             stack.callback(engine.close)  # its worker thread ends with the command, not after
+        codecs: dict = {}
         consumers = _open_writers(stack, args, info,
-                                  run_extras.open_objects(stack, args, tracking))
+                                  run_extras.open_objects(stack, args, tracking), codecs)
         consumers.append(ProgressBar(total=info.frame_count, desc=method,
                                      enabled=not args.quiet))
         loop = FrameLoop({method: engine}, consumers)
@@ -265,7 +272,8 @@ def run(args: argparse.Namespace) -> int:
             stats = loop.run(source)
         except KeyboardInterrupt:
             if args.json:  # what the partial outputs hold
-                run_extras.print_summary(loop.stats, method=method, outputs=_outputs(args))
+                run_extras.print_summary(loop.stats, method=method, outputs=_outputs(args),
+                                         codecs=codecs)
             raise
 
     short = source.truncation()  # decoding ended well before the end the video declares
@@ -276,8 +284,10 @@ def run(args: argparse.Namespace) -> int:
         common.note(motion, quiet=args.quiet)
     written = list(_outputs(args).values())
     common.note(_summary(stats, method, written), quiet=args.quiet)
+    for kind, codec in codecs.items():  # which picture videos browsers play
+        common.note(common.describe_codec(_outputs(args)[kind], codec), quiet=args.quiet)
     if args.json:
-        run_extras.print_summary(stats, method=method, outputs=_outputs(args))
+        run_extras.print_summary(stats, method=method, outputs=_outputs(args), codecs=codecs)
     eval_notice = _eval_notice(args, bool(renumbered))  # how to score what was written
     if eval_notice and stats.frames:
         common.note(eval_notice, quiet=args.quiet)

@@ -65,9 +65,11 @@ def vis_writer(sink: Any, objects: Optional[ObjectWriter]) -> VisWriter:
     return VisWriter(sink) if objects is None else ObjectVisWriter(sink, objects=objects)
 
 
-def print_summary(stats: RunStats, *, method: str, outputs: Dict[str, str]) -> None:
+def print_summary(stats: RunStats, *, method: str, outputs: Dict[str, str],
+                  codecs: Optional[Dict[str, str]] = None) -> None:
     """The run's summary as one JSON object on stdout. ``statuses`` counts frames per status
-    (``ok`` included) for engines that report one, and is empty for the others."""
+    (``ok`` included) for engines that report one, and is empty for the others;
+    ``video_codecs`` names the codec of each picture video (``{"vis": "h264"}``)."""
     statuses: Dict[str, int] = {}
     if stats.has_status:
         statuses = {"ok": stats.frames * len(stats.engines) - stats.not_ok,
@@ -76,4 +78,4 @@ def print_summary(stats: RunStats, *, method: str, outputs: Dict[str, str]) -> N
     print(json.dumps({"method": method, "frames": stats.frames,
                       "seconds": round(stats.seconds, 3), "fps": fps and round(fps, 2),
                       "complete": stats.complete, "statuses": statuses,
-                      "outputs": outputs}), flush=True)
+                      "outputs": outputs, "video_codecs": dict(codecs or {})}), flush=True)

@@ -18,8 +18,9 @@ The input is one of
   ground truth given separately.
 
 Outputs in ``report_dir`` (per sequence in ``report_dir/<sequence>/`` for a dataset root):
-``<method>/binNNNNNN.png`` masks (or ``<method>.mkv``), ``side_by_side.mp4`` (input | one mask
-per method, labelled), and ``report.txt`` / ``report.csv`` / ``report.json`` at the top;
+``<method>/binNNNNNN.png`` masks (or ``<method>.mkv``), ``side_by_side.mp4`` (input | ground
+truth | one mask per method, labelled), and ``report.txt`` / ``report.csv`` / ``report.json``
+and the self-contained page ``report.html`` (:mod:`bgsub.evaluation.html_report`) at the top;
 ``report.json`` lists these outputs, and a later run with ``overwrite=True`` removes them (and
 nothing else) before writing its own.
 
@@ -48,14 +49,17 @@ from bgsub.engines import available_engines, get_engine_spec
 from bgsub.errors import BgsubError, InputError
 from bgsub.evaluation.compare_job import Job, PartialJob, RunOptions, run_job
 from bgsub.evaluation.compare_report import (
-    REPORT_FILES, TIMING_NOTE, ComparisonReport, ComparisonRow, mean_rows,
+    HTML_REPORT, REPORT_FILES, TIMING_NOTE, ComparisonReport, ComparisonRow, mean_rows,
 )
 from bgsub.evaluation.groundtruth import (
     category_of, find_sequences, is_sequence, open_ground_truth,
 )
+from bgsub.evaluation.html_report import write_html_report
+from bgsub.io.h264 import picture_codec
 from bgsub.evaluation.report_dir import (
     SIDE_BY_SIDE, RunOutputs, check_report_dir, remove_if_no_files, remove_previous_outputs,
 )
+from bgsub.evaluation.report_frames import SequenceFrames
 from bgsub.evaluation.side_by_side import TILE_HEIGHT, TileLayout
 
 __all__ = ["MASK_FORMATS", "REPORT_FILES", "SIDE_BY_SIDE", "TILE_HEIGHT", "TIMING_NOTE",
@@ -63,6 +67,8 @@ __all__ = ["MASK_FORMATS", "REPORT_FILES", "SIDE_BY_SIDE", "TILE_HEIGHT", "TIMIN
            "remove_previous_outputs"]
 
 PathLike = Union[str, "Path"]
+
+SIDE_BY_SIDE_SUFFIX = Path(SIDE_BY_SIDE).suffix
 
 #: Mask outputs: a folder of CDnet binNNNNNN.png, a lossless FFV1 video, or nothing.
 MASK_FORMATS = ("png", "mkv", "none")
@@ -161,6 +167,8 @@ def compare_methods(
     max_frames: Optional[int] = None,
     masks: str = "png",
     video: bool = True,
+    html: bool = True,
+    video_codec: str = "auto",
     tile_height: int = TILE_HEIGHT,
     overwrite: bool = False,
     quiet: bool = True,
@@ -200,7 +208,14 @@ def compare_methods(
     masks : {"png", "mkv", "none"}
         ``<method>/binNNNNNN.png``, lossless ``<method>.mkv``, or no masks.
     video : bool
-        Write ``side_by_side.mp4`` per input.
+        Write ``side_by_side.mp4`` per input (input, ground truth when there is one, one mask
+        per method).
+    video_codec : {"auto", "h264", "mp4v"}
+        Codec of ``side_by_side.mp4`` (:func:`bgsub.io.h264.picture_codec`: H.264 when PyAV
+        is installed, with ``"auto"``); the one used is ``report.settings["video_codec"]``.
+    html : bool
+        Write ``report.html`` (:mod:`bgsub.evaluation.html_report`): the figures, charts and a
+        few frames of each input, in one page that needs nothing else.
     tile_height : int
         Largest height of one tile of the side-by-side video (frames are never enlarged).
     overwrite : bool
@@ -230,6 +245,7 @@ def compare_methods(
     """
     names, params = _checked_methods(methods, params)
     _check_options(masks=masks, max_frames=max_frames, tile_height=tile_height)
+    codec = picture_codec(SIDE_BY_SIDE_SUFFIX, video_codec) if video else None
     input_text = str(input_path)
     out = Path(report_dir) if report_dir is not None else None
     jobs, is_dataset, plan_notes = _plan(input_text, gt, out)
@@ -241,7 +257,7 @@ def compare_methods(
     options = RunOptions(
         source=dict(start=start, stop=stop, step=step, scale=scale, width=width, fps=fps),
         max_frames=max_frames, skip_first=skip_first, ignore_roi_bmp=ignore_roi, masks=masks,
-        video=video, tile_height=tile_height, overwrite=overwrite, quiet=quiet,
+        video=video, video_codec=codec or "mp4v", tile_height=tile_height, overwrite=overwrite, quiet=quiet,
         tolerate_empty=is_dataset)
     report = ComparisonReport(
         input=input_text, methods=names, report_dir=str(out) if out else None,
@@ -249,6 +265,7 @@ def compare_methods(
             "start": start, "stop": stop, "step": step, "scale": scale, "width": width,
             "max_frames": max_frames, "skip_first": skip_first, "roi_bmp": not ignore_roi,
             "params": {m: dict(v) for m, v in params.items()},
+            **({"video_codec": codec} if codec else {}),
         },
     )
     # With overwrite, the previous run's outputs go once the first input is accepted (so a
@@ -274,8 +291,10 @@ def compare_methods(
         report.settings["skipped"] = plan_notes
     if out is not None:
         written.clear_previous()
-        report.outputs = list(written.paths)
+        report.outputs = [*([HTML_REPORT] if html else []), *written.paths]
         report.write(out)
+        if html:
+            write_html_report(report, out / HTML_REPORT)
     if stopped is not None:
         # The figures of the frames processed are in the report folder; the caller learns of
         # the interrupt, with the report attached (bgsub compare prints it).
@@ -321,17 +340,20 @@ def _run_jobs(jobs: Sequence[Job], names: Sequence[str],
     """Run every job, adding its rows and warnings to ``report``; returns the interrupt that
     stopped them (after the rows of the frames processed), or None."""
     for job in progress(jobs, total=len(jobs), desc="sequences", quiet=quiet, unit="seq"):
-        stopped = None
+        stopped, frames = None, None
         try:
-            rows, warnings = run_job(job, names, params, options, written)
+            rows, warnings, frames = run_job(job, names, params, options, written)
         except PartialJob as partial:
             rows, warnings, stopped = partial.rows, partial.warnings, partial.stop
+            frames = partial.frames
         except KeyboardInterrupt as stop:  # before the job's first frame
             if not report.rows:
                 raise
             rows, warnings, stopped = [], [], stop
         report.rows.extend(rows)
         report.warnings.extend(warnings)
+        if frames is not None:
+            report.frames.append(frames)
         if stopped is not None:
             return stopped
     return None
@@ -339,13 +361,14 @@ def _run_jobs(jobs: Sequence[Job], names: Sequence[str],
 
 def _job_elsewhere(call: Tuple[Job, Sequence[str], Mapping[str, Mapping[str, Any]],
                                RunOptions, Optional[Path]]
-                   ) -> Tuple[List[ComparisonRow], List[str], List[str]]:
-    """:func:`run_job` in a worker process: its rows, warnings and the report files it wrote."""
+                   ) -> Tuple[List[ComparisonRow], List[str], SequenceFrames, List[str]]:
+    """:func:`run_job` in a worker process: its rows, warnings, frames for the HTML report and
+    the report files it wrote."""
     job, names, params, options, root = call
     written = RunOutputs(root, overwrite=False, methods=names, protect=[])
-    rows, warnings = run_job(job, names, params, dataclasses.replace(options, quiet=True),
-                             written)
-    return rows, warnings, written.paths
+    rows, warnings, frames = run_job(job, names, params,
+                                     dataclasses.replace(options, quiet=True), written)
+    return rows, warnings, frames, written.paths
 
 
 def _run_jobs_elsewhere(jobs: Sequence[Job], names: Sequence[str],
@@ -360,9 +383,10 @@ def _run_jobs_elsewhere(jobs: Sequence[Job], names: Sequence[str],
 
     written.clear_previous()
     calls = [(job, list(names), dict(params), options, written.root) for job in jobs]
-    for rows, warnings, paths in ordered_map(_job_elsewhere, calls, jobs=workers,
-                                             scheduler=scheduler):
+    for rows, warnings, frames, paths in ordered_map(_job_elsewhere, calls, jobs=workers,
+                                                     scheduler=scheduler):
         report.rows.extend(rows)
         report.warnings.extend(warnings)
+        report.frames.append(frames)
         written.paths.extend(path for path in paths if path not in written.paths)
     return None

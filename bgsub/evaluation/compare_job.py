@@ -24,7 +24,8 @@ from bgsub.evaluation.compare_report import ComparisonRow
 from bgsub.evaluation.groundtruth import GroundTruth, open_ground_truth
 from bgsub.evaluation.report_dir import SIDE_BY_SIDE, RunOutputs
 from bgsub.evaluation.scoring import GroundTruthScorer
-from bgsub.evaluation.side_by_side import SideBySideWriter, TileLayout
+from bgsub.evaluation.report_frames import ReportFrames, SequenceFrames
+from bgsub.evaluation.side_by_side import TRUTH_LABEL, SideBySideWriter, TileLayout
 from bgsub.io.loop import Consumer, FrameLoop, FrameResult, RunStats
 from bgsub.io.sinks import VideoSink, open_mask_sink
 from bgsub.io.sources import FrameSource, VideoInfo, open_source
@@ -53,6 +54,7 @@ class RunOptions:
     ignore_roi_bmp: bool
     masks: str
     video: bool
+    video_codec: str  # of side_by_side.mp4: "h264" or "mp4v"
     tile_height: int
     overwrite: bool
     quiet: bool
@@ -145,11 +147,13 @@ def _past_gt_end(job: Job, gt: GroundTruth, info: VideoInfo, *, start: int,
 
 
 def run_job(job: Job, methods: Sequence[str], params: Mapping[str, Mapping[str, Any]],
-            run: RunOptions, written: RunOutputs) -> Tuple[List[ComparisonRow], List[str]]:
-    """Run ``methods`` on one input; returns its rows and the warnings for stderr.
+            run: RunOptions, written: RunOutputs
+            ) -> Tuple[List[ComparisonRow], List[str], SequenceFrames]:
+    """Run ``methods`` on one input; returns its rows, the warnings for stderr and a few of
+    its frames for the HTML report.
 
-    Raises :class:`PartialJob` (its rows so far, and the interrupt) when Ctrl-C or a signal
-    stops the input after some frames.
+    Raises :class:`PartialJob` (its rows and frames so far, and the interrupt) when Ctrl-C or
+    a signal stops the input after some frames.
     """
     options = _source_options(run)
     with open_source(job.frames, **options) as source:
@@ -168,10 +172,14 @@ def run_job(job: Job, methods: Sequence[str], params: Mapping[str, Mapping[str, 
         reading = _Reading(source)
         stopped: Optional[KeyboardInterrupt] = None
         with contextlib.ExitStack() as stack:
-            outputs = _outputs(stack, job, methods, run, size=size, info=info, written=written)
+            truth = scoring.gt if scoring else None
+            outputs = _outputs(stack, job, methods, run, size=size, info=info, written=written,
+                               truth=truth)
+            frames = ReportFrames(methods, truth=truth,
+                                  numbers=scoring.numbers if scoring else None)
             loop = FrameLoop(engines, [
                 ProgressBar(total=info.frame_count, desc=job.name, enabled=not run.quiet),
-                GroundTruthSized(size, [*outputs, *([scorer] if scorer else [])])])
+                GroundTruthSized(size, [*outputs, *([scorer] if scorer else []), frames])])
             try:
                 loop.run(reading)
             except KeyboardInterrupt as stop:  # the loop has finished the partial outputs
@@ -193,19 +201,28 @@ def run_job(job: Job, methods: Sequence[str], params: Mapping[str, Mapping[str, 
                                                  notes, warnings, stopped=stopped is not None):
         scorer = None
     rows = _rows(job, methods, loop.stats, scorer, notes)
+    shown = frames.result(name=job.name, family=job.family, video=_video_path(job, run, written))
     if stopped is not None:
-        raise PartialJob(rows, warnings, stopped)
-    return rows, warnings
+        raise PartialJob(rows, warnings, stopped, frames=shown)
+    return rows, warnings, shown
+
+
+def _video_path(job: Job, run: RunOptions, written: RunOutputs) -> str:
+    """The job's side-by-side video relative to the report folder ("" when none is written)."""
+    if not run.video or job.out is None or written.root is None:
+        return ""
+    return (job.out / SIDE_BY_SIDE).relative_to(written.root).as_posix()
 
 
 class PartialJob(Exception):
-    """Ctrl-C (or SIGTERM) stopped a job after some frames: its rows so far, and the interrupt
-    to raise again once they are in the report."""
+    """Ctrl-C (or SIGTERM) stopped a job after some frames: its rows and frames so far, and
+    the interrupt to raise again once they are in the report."""
 
     def __init__(self, rows: List[ComparisonRow], warnings: List[str],
-                 stop: KeyboardInterrupt) -> None:
+                 stop: KeyboardInterrupt, *, frames: Optional[SequenceFrames] = None) -> None:
         super().__init__("interrupted")
         self.rows, self.warnings, self.stop = rows, warnings, stop
+        self.frames = frames
 
 
 def _source_options(run: RunOptions) -> Dict[str, Any]:
@@ -228,9 +245,11 @@ def _make_folder(job: Job, run: RunOptions) -> None:
 
 
 def _outputs(stack: contextlib.ExitStack, job: Job, methods: Sequence[str], run: RunOptions, *,
-             size: Tuple[int, int], info: VideoInfo, written: RunOutputs) -> List[Consumer]:
+             size: Tuple[int, int], info: VideoInfo, written: RunOutputs,
+             truth: Optional[GroundTruth]) -> List[Consumer]:
     """The consumers that write this input's masks (``size`` = (width, height)) and its
-    side-by-side video; their sinks are entered on ``stack``."""
+    side-by-side video (with a ground-truth tile when ``truth`` is given); their sinks are
+    entered on ``stack``."""
     if job.out is None:
         return []
     consumers: List[Consumer] = []
@@ -242,13 +261,14 @@ def _outputs(stack: contextlib.ExitStack, job: Job, methods: Sequence[str], run:
                 target, width=size[0], height=size[1], fps=info.fps, overwrite=run.overwrite))
             consumers.append(MaskWriter(sink, engine=method))
     if run.video:
-        layout = TileLayout.for_frames(info.width, info.height, ["input", *methods],
+        labels = ["input", *([TRUTH_LABEL] if truth is not None else []), *methods]
+        layout = TileLayout.for_frames(info.width, info.height, labels,
                                        tile_height=run.tile_height)
         written.add(job.out / SIDE_BY_SIDE)
         sink = stack.enter_context(VideoSink(
             job.out / SIDE_BY_SIDE, fps=info.fps, width=layout.width, height=layout.height,
-            overwrite=run.overwrite))
-        consumers.append(SideBySideWriter(sink, layout, methods))
+            overwrite=run.overwrite, codec=run.video_codec))
+        consumers.append(SideBySideWriter(sink, layout, methods, truth=truth))
     return consumers
 
 

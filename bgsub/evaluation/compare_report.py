@@ -14,6 +14,7 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
 from bgsub.errors import OutputError
 from bgsub.evaluation.metrics import METRIC_NAMES, METRIC_TITLES, Counts, Metrics
+from bgsub.evaluation.report_frames import SequenceFrames
 from bgsub.evaluation.results import DatasetResult, SequenceResult
 
 PathLike = Union[str, "Path"]
@@ -26,6 +27,8 @@ TIMING_NOTE = (
 
 #: The report's files, at the top of the report folder.
 REPORT_FILES = ("report.txt", "report.csv", "report.json")
+#: The report as one self-contained web page (:mod:`bgsub.evaluation.html_report`), beside them.
+HTML_REPORT = "report.html"
 
 
 @dataclass(frozen=True)
@@ -120,6 +123,9 @@ class ComparisonReport:
     warnings : list of str
         What the caller should be told (``bgsub compare`` prints them on stderr), e.g. an input
         that ends before its ground truth, so that fewer frames were scored than it holds.
+    frames : list of SequenceFrames
+        A few frames of each input (input, ground truth, masks) for the HTML report; not in
+        the text, CSV or JSON.
     """
 
     input: str
@@ -131,6 +137,7 @@ class ComparisonReport:
     report_dir: Optional[str] = None
     outputs: List[str] = field(default_factory=list)
     warnings: List[str] = field(default_factory=list)
+    frames: List[SequenceFrames] = field(default_factory=list)
 
     @property
     def has_metrics(self) -> bool:

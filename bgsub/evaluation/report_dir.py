@@ -11,7 +11,7 @@ from typing import List, Optional, Sequence, Tuple, Union
 
 from bgsub.engines import available_engines
 from bgsub.errors import OutputError, given_path
-from bgsub.evaluation.compare_report import REPORT_FILES
+from bgsub.evaluation.compare_report import HTML_REPORT, REPORT_FILES
 from bgsub.io.outputs import MASK_NAME, PARTIAL_MASK_NAME, partial_path
 from bgsub.io.sinks import names_a_folder
 
@@ -120,14 +120,14 @@ def _previous_report(root: Path) -> Tuple[Optional[List[str]], List[str]]:
 
 def _names_an_output(rel: str, methods: Sequence[str]) -> bool:
     """Whether ``rel`` (relative to the report folder) is a path compare writes: a report file
-    at the top, or ``[SEQUENCE/]side_by_side.mp4``, ``<method>`` or ``<method>.mkv`` at most
+    (or ``report.html``) at the top, or ``[SEQUENCE/]side_by_side.mp4``, ``<method>`` or ``<method>.mkv`` at most
     :data:`_MAX_OUTPUT_DEPTH` levels down."""
     parts = rel.split("/")
     if not rel or rel.startswith("/") or "\\" in rel or len(parts) > _MAX_OUTPUT_DEPTH \
             or any(part in ("", ".", "..") for part in parts):
         return False
     name = parts[-1]
-    if name in REPORT_FILES:
+    if name in REPORT_FILES or name == HTML_REPORT:
         return len(parts) == 1
     return name == SIDE_BY_SIDE or name in methods or \
         (name.endswith(".mkv") and name[:-len(".mkv")] in methods)
@@ -138,7 +138,7 @@ def _outputs_by_name(root: Path, methods: Sequence[str]) -> List[str]:
     the report files, and ``side_by_side.mp4``, ``<method>/`` and ``<method>.mkv`` at the top
     (a single input) or in folders one or two levels down (``NAME/``, ``CATEGORY/NAME/`` of a
     dataset root). Folders named after a method are mask folders, not sequences."""
-    found = list(REPORT_FILES)
+    found = [*REPORT_FILES, HTML_REPORT]
     per_input = [SIDE_BY_SIDE, *methods, *(f"{m}.mkv" for m in methods)]
     level = [""]
     for depth in range(_MAX_OUTPUT_DEPTH):
@@ -225,7 +225,7 @@ def _previous_files(root: Path, candidates: Sequence[str], names: Sequence[str]
                       and (MASK_NAME.fullmatch(entry.name)
                            or PARTIAL_MASK_NAME.fullmatch(entry.name))]
             folders.append(path)
-        elif name in REPORT_FILES or name == SIDE_BY_SIDE \
+        elif name in REPORT_FILES or name in (HTML_REPORT, SIDE_BY_SIDE) \
                 or (name.endswith(".mkv") and name[:-len(".mkv")] in names):
             # The file, and the one an interrupted video writer leaves.
             partial = partial_path(path)

@@ -1,5 +1,10 @@
-"""The side-by-side picture of `bgsub compare`: the input frame and one labelled mask per
-method, as tiles of one video frame.
+"""The side-by-side picture of `bgsub compare`: the input frame, the ground truth (when there
+is one) and one labelled mask per method, as tiles of one video frame.
+
+The ground-truth tile shows the CDnet labels as they are stored, which reads as intended:
+255 (moving object) white, 170 (unknown, object rims) light grey, 85 (outside the region of
+interest) mid grey, 50 (hard shadow) dark grey, 0 black. Frames without a ground-truth file get
+a dark blue tile (:data:`NO_TRUTH_BGR`).
 """
 
 from __future__ import annotations
@@ -11,6 +16,7 @@ from typing import Any, Optional, Sequence, Tuple
 import cv2
 import numpy as np
 
+from bgsub.evaluation.groundtruth import GroundTruth
 from bgsub.io.loop import Consumer, FrameResult
 
 # Side-by-side tiles are shrunk (never enlarged) to at most this height, and the whole picture
@@ -20,6 +26,11 @@ from bgsub.io.loop import Consumer, FrameResult
 TILE_HEIGHT = 180
 _VIDEO_MAX_WIDTH = 1600
 _TILES_PER_ROW = 5
+
+#: The label of the ground-truth tile.
+TRUTH_LABEL = "ground truth"
+#: The ground-truth tile of a frame that has no ground truth (BGR).
+NO_TRUTH_BGR = (64, 32, 0)
 
 
 @dataclass(frozen=True)
@@ -65,7 +76,8 @@ class TileLayout:
         Parameters
         ----------
         frame : (H, W, 3) uint8 BGR
-        masks : sequence of (h, w) uint8 0/255, one per method (any size; resized to the tile)
+        masks : sequence of (h, w) uint8 0/255 or (h, w, 3) uint8 BGR, one per further label
+            (any size; resized to the tile)
 
         Returns
         -------
@@ -88,6 +100,19 @@ class TileLayout:
         return canvas
 
 
+def truth_picture(gt: GroundTruth, number: int) -> np.ndarray:
+    """The ground truth of frame ``number`` (1-based) as a picture: ``(H, W, 3) uint8`` BGR,
+    the CDnet labels as gray levels (see the module docstring), pixels outside ``ROI.bmp`` as
+    85 (outside the region of interest); a dark blue picture when the frame has no ground
+    truth."""
+    if number not in gt.frames:
+        return np.full((gt.height, gt.width, 3), NO_TRUTH_BGR, np.uint8)
+    labels = gt.labels(number)
+    if gt.roi is not None:
+        labels = np.where(gt.roi, labels, np.uint8(85))
+    return cv2.cvtColor(labels, cv2.COLOR_GRAY2BGR)
+
+
 def _draw_label(tile: np.ndarray, text: str) -> None:
     """Write ``text`` in the tile's top-left corner on a dark box (in place)."""
     font = cv2.FONT_HERSHEY_SIMPLEX
@@ -99,21 +124,26 @@ def _draw_label(tile: np.ndarray, text: str) -> None:
 
 
 class SideBySideWriter(Consumer):
-    """A consumer of :class:`bgsub.io.loop.FrameLoop` that writes, per frame, the input and
-    the masks of ``methods`` (in that order) as one picture laid out by ``layout`` into
-    ``sink`` (a :class:`bgsub.io.sinks.VideoSink` of the layout's size), and finishes the sink
-    when the run ends."""
+    """A consumer of :class:`bgsub.io.loop.FrameLoop` that writes, per frame, the input, the
+    ground truth ``truth`` (when given; frame ``index`` is ground-truth frame ``index + 1``) and
+    the masks of ``methods`` (in that order) as one picture laid out by ``layout`` (whose labels
+    name those tiles) into ``sink`` (a :class:`bgsub.io.sinks.VideoSink` of the layout's size),
+    and finishes the sink when the run ends."""
 
-    def __init__(self, sink: Any, layout: TileLayout, methods: Sequence[str]) -> None:
+    def __init__(self, sink: Any, layout: TileLayout, methods: Sequence[str], *,
+                 truth: Optional[GroundTruth] = None) -> None:
         self.sink = sink
         self.layout = layout
         self.methods = list(methods)
+        self.truth = truth
         self._picture: Optional[np.ndarray] = None
 
     def prepare(self, result: FrameResult) -> None:
         # Drawn before any output is written: an interrupt here leaves the frame out of all.
-        self._picture = self.layout.compose(result.frame,
-                                            [result.masks[m] for m in self.methods])
+        tiles = [result.masks[m] for m in self.methods]
+        if self.truth is not None:
+            tiles.insert(0, truth_picture(self.truth, result.index + 1))
+        self._picture = self.layout.compose(result.frame, tiles)
 
     def add(self, result: FrameResult) -> None:
         self.sink.write(self._picture)

@@ -1,4 +1,5 @@
-"""Optical-flow files and pictures: Middlebury ``.flo`` I/O, the colour wheel, arrows, errors.
+"""Optical-flow files and pictures: Middlebury ``.flo`` I/O, the colour wheel (and its legend),
+arrows, errors.
 
 Flow fields follow the project convention (docs/ARCHITECTURE.md): ``(H, W, 2) float32`` with
 ``flow[y, x] = (dx, dy)`` = Middlebury's ``(u, v)``, NaN where unknown.
@@ -164,6 +165,17 @@ def _check_max_magnitude(max_magnitude: Optional[float]) -> None:
                          f"in the field), not {max_magnitude!r}")
 
 
+def colour_scale(flow: np.ndarray, *, max_magnitude: Optional[float] = None) -> float:
+    """The magnitude (pixels) :func:`flow_to_color` shows at full saturation: ``max_magnitude``
+    when given, else the largest known magnitude in ``flow`` ((H, W, 2); 0 when none is
+    known)."""
+    if max_magnitude is not None:
+        return float(max_magnitude)
+    flow = np.asarray(flow, dtype=np.float64)
+    known = np.isfinite(flow).all(axis=2)
+    return float(np.hypot(flow[known, 0], flow[known, 1]).max()) if known.any() else 0.0
+
+
 def flow_to_color(flow: np.ndarray, *, max_magnitude: Optional[float] = None) -> np.ndarray:
     """Colour-code a flow field with the Middlebury colour wheel (Baker et al.).
 
@@ -197,9 +209,7 @@ def flow_to_color(flow: np.ndarray, *, max_magnitude: Optional[float] = None) ->
     u = np.where(known, flow[..., 0], 0.0)
     v = np.where(known, flow[..., 1], 0.0)
     rad = np.hypot(u, v)
-    if max_magnitude is None:
-        max_magnitude = float(rad.max()) if known.any() else 0.0
-    scale = max(float(max_magnitude), np.finfo(np.float64).eps)
+    scale = max(colour_scale(flow, max_magnitude=max_magnitude), np.finfo(np.float64).eps)
     u, v, rad = u / scale, v / scale, rad / scale
 
     n_cols = len(_COLOR_WHEEL)
@@ -215,6 +225,53 @@ def flow_to_color(flow: np.ndarray, *, max_magnitude: Optional[float] = None) ->
     rgb = np.floor(255 * color).astype(np.uint8)
     rgb[~known] = 0
     return np.ascontiguousarray(rgb[..., ::-1])
+
+
+def colour_wheel(max_magnitude: float, *, size: int = 64) -> Tuple[np.ndarray, np.ndarray]:
+    """The legend of :func:`flow_to_color`: a disc whose pixel at angle ``theta`` and radius
+    ``r`` (of the disc's radius ``R``) has the colour of the vector ``max_magnitude * r / R *
+    (cos theta, sin theta)`` (image axes: x right, y down), so the centre is still (white) and
+    the rim moves ``max_magnitude`` pixels.
+
+    Returns
+    -------
+    wheel : (size, size, 3) uint8 BGR
+    disc : (size, size) bool, True inside the disc
+    """
+    _check_max_magnitude(max_magnitude)
+    centre = (size - 1) / 2
+    radius = size / 2 - 1
+    ys, xs = np.mgrid[0:size, 0:size].astype(np.float64)
+    offsets = np.stack([xs - centre, ys - centre], axis=2)
+    wheel = flow_to_color(offsets / radius * max_magnitude, max_magnitude=max_magnitude)
+    disc = np.hypot(offsets[..., 0], offsets[..., 1]) <= radius
+    return wheel, disc
+
+
+def add_colour_wheel(picture: np.ndarray, max_magnitude: float) -> np.ndarray:
+    """A copy of ``picture`` ((H, W, 3) uint8, a :func:`flow_to_color` picture) with its legend
+    in the bottom-right corner: :func:`colour_wheel` (a fifth of the shorter side, 24 to 96
+    pixels) on a dark square, and the speed of its rim (``"4 px"``) beside it. ``max_magnitude``
+    is the picture's full-saturation magnitude (:func:`colour_scale`); 0 (a still field) draws
+    the wheel of 1 px and writes ``"0 px"``. Pictures under 48 pixels a side are returned
+    unchanged (no room)."""
+    canvas = np.array(picture, dtype=np.uint8, copy=True)
+    h, w = canvas.shape[:2]
+    if min(h, w) < 48:
+        return canvas
+    size = int(np.clip(min(h, w) // 5, 24, 96))
+    wheel, disc = colour_wheel(max_magnitude if max_magnitude > 0 else 1.0, size=size)
+    text = f"{max_magnitude:.3g} px"
+    font, scale = cv2.FONT_HERSHEY_SIMPLEX, 0.4
+    (tw, th), _ = cv2.getTextSize(text, font, scale, 1)
+    x0, y0 = w - size - 4, h - size - 4
+    box_left = max(0, x0 - tw - 8)
+    cv2.rectangle(canvas, (box_left, y0 - 2), (w - 1, h - 1), (32, 32, 32), -1)
+    region = canvas[y0:y0 + size, x0:x0 + size]
+    region[disc] = wheel[disc]
+    cv2.putText(canvas, text, (box_left + 3, y0 + size // 2 + th // 2), font, scale,
+                (255, 255, 255), 1, cv2.LINE_AA)
+    return canvas
 
 
 def draw_flow_arrows(
@@ -314,6 +371,7 @@ def flow_picture(
     step: int = 16,
     arrow_scale: Optional[float] = None,
     max_magnitude: Optional[float] = None,
+    legend: bool = False,
 ) -> np.ndarray:
     """A picture of a dense flow field: the colour code, or arrows over the image.
 
@@ -331,6 +389,9 @@ def flow_picture(
         ``0.9 * step`` long (at least 1x).
     max_magnitude : float, optional
         Colour-code saturation (see :func:`flow_to_color`); above 0 when given.
+    legend : bool
+        The colour code with its colour wheel and scale in a corner (:func:`add_colour_wheel`);
+        arrows need none.
 
     Returns
     -------
@@ -338,7 +399,10 @@ def flow_picture(
     """
     _check_max_magnitude(max_magnitude)  # refused with arrows too, which do not use it
     if not arrows:
-        return flow_to_color(flow, max_magnitude=max_magnitude)
+        picture = flow_to_color(flow, max_magnitude=max_magnitude)
+        if legend:
+            picture = add_colour_wheel(picture, colour_scale(flow, max_magnitude=max_magnitude))
+        return picture
     if image is None:
         raise ValueError("arrows are drawn over the image: give image")
     gray = image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
@@ -443,6 +507,9 @@ __all__: Sequence[str] = (
     "read_flo",
     "write_flo",
     "flow_to_color",
+    "colour_scale",
+    "colour_wheel",
+    "add_colour_wheel",
     "draw_flow_arrows",
     "arrow_grid",
     "flow_picture",

@@ -1,8 +1,9 @@
 """Picture sinks: colour videos common players open (:class:`VideoSink`: flow pictures,
 side-by-side comparisons) and the input with its mask overlaid (:class:`VisSink`).
 
-``.mp4`` (mp4v), ``.avi`` (MJPG) or ``.mkv`` (FFV1): this OpenCV build cannot encode H.264, so
-mp4v in ``.mp4`` is the most widely playable choice.
+``.mp4`` / ``.mov`` in H.264 when PyAV is installed (the ``h264`` extra; web browsers play it),
+else in MPEG-4 part 2 (mp4v, which OpenCV writes and desktop players play); ``.avi`` (MJPG) or
+``.mkv`` (FFV1). See :mod:`bgsub.io.h264`.
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ from typing import Optional, Tuple
 
 import numpy as np
 
+from bgsub.io.h264 import picture_codec
 from bgsub.io.outputs import (PICTURE_VIDEO_CODECS, PathLike, check_video_output, output_path,
                               say)
 from bgsub.io.sink_base import Sink, binary_mask, check_image, check_size
@@ -20,7 +22,8 @@ import cv2  # noqa: E402,I100 (bgsub.io.sources sets FFmpeg's log level before c
 
 
 class VideoSink(Sink):
-    """A colour video of pictures: ``.mp4`` (mp4v), ``.avi`` (MJPG) or ``.mkv`` (FFV1).
+    """A colour video of pictures: ``.mp4`` / ``.mov`` (H.264 or mp4v), ``.avi`` (MJPG) or
+    ``.mkv`` (FFV1).
 
     Parameters
     ----------
@@ -32,15 +35,27 @@ class VideoSink(Sink):
         Picture size; when not given, the first picture written fixes it.
     overwrite : bool
         Replace an existing file.
+    codec : {"auto", "h264", "mp4v"}
+        For ``.mp4`` / ``.mov``: H.264 when PyAV can write it (``"auto"``) or always
+        (``"h264"``; :class:`OutputError` without PyAV), or MPEG-4 part 2 (``"mp4v"``).
+        Other suffixes keep their codec.
+
+    Attributes
+    ----------
+    codec : str
+        The codec written: ``"h264"``, ``"mp4v"``, ``"MJPG"`` or ``"FFV1"``.
     """
 
     def __init__(self, path: PathLike, *, fps: float, width: Optional[int] = None,
-                 height: Optional[int] = None, overwrite: bool = False) -> None:
+                 height: Optional[int] = None, overwrite: bool = False,
+                 codec: str = "auto") -> None:
+        suffix = output_path(path).suffix.lower()
+        chosen = picture_codec(suffix, codec)  # (a bad choice refused before any check)
         self.path = check_video_output(path, overwrite=overwrite)
         if width is not None or height is not None:
             check_size(self.path, width, height, "pictures")
-        codec = PICTURE_VIDEO_CODECS[self.path.suffix.lower()]
-        self._video = VideoFile(self.path, codec=codec, fps=fps, is_color=True,
+        self.codec = chosen or PICTURE_VIDEO_CODECS[suffix]
+        self._video = VideoFile(self.path, codec=self.codec, fps=fps, is_color=True,
                                 overwrite=overwrite)
         self._blanks = 0  # pictures skipped before the size was known
         if width is not None and height is not None:
@@ -116,21 +131,24 @@ class VisSink(Sink):
     Parameters
     ----------
     path : str or path
-        ``.mp4`` (mp4v), ``.avi`` (MJPG) or ``.mkv`` (FFV1).
+        ``.mp4`` / ``.mov`` (H.264 or mp4v), ``.avi`` (MJPG) or ``.mkv`` (FFV1).
     width, height : int
         Size of the input frames (the video is ``2 * width`` wide).
     fps : float
         Frame rate.
     overwrite : bool
         Replace an existing file.
+    codec : {"auto", "h264", "mp4v"}
+        As :class:`VideoSink`'s; the codec written is :attr:`codec`.
     """
 
     def __init__(self, path: PathLike, *, width: int, height: int, fps: float,
-                 overwrite: bool = False) -> None:
+                 overwrite: bool = False, codec: str = "auto") -> None:
         check_size(output_path(path), width, height, "frames")
         self._video = VideoSink(path, fps=fps, width=2 * int(width), height=int(height),
-                                overwrite=overwrite)
+                                overwrite=overwrite, codec=codec)
         self.path = self._video.path
+        self.codec = self._video.codec
         self.width, self.height = int(width), int(height)
 
     @property

@@ -12,11 +12,12 @@ import math
 import os
 import shutil
 from pathlib import Path
-from typing import Optional, Tuple
+from typing import Any, Optional, Tuple
 
 import numpy as np
 
 from bgsub.errors import OutputError, ProcessingError
+from bgsub.io.h264 import H264Writer
 from bgsub.io.outputs import OutputClaim, frames_text, partial_path, why_not_writable
 from bgsub.io.sources import quiet_opencv
 
@@ -24,7 +25,9 @@ import cv2  # noqa: E402,I100 (bgsub.io.sources sets FFmpeg's log level before c
 
 
 class VideoFile:
-    """One ``cv2.VideoWriter`` written under a temporary name and renamed when closed.
+    """One video written under a temporary name and renamed when closed: through
+    ``cv2.VideoWriter`` with the FourCC ``codec``, or through PyAV when ``codec`` is
+    ``"h264"`` (:class:`bgsub.io.h264.H264Writer`; ``is_color`` must then be True).
 
     The temporary name is claimed (:class:`OutputClaim`) from construction to :meth:`close`,
     so a second run writing the same output is refused rather than deleting this one's file.
@@ -41,7 +44,7 @@ class VideoFile:
         self.size: Optional[Tuple[int, int]] = None  # (width, height) once open
         self.frames_written = 0
         self._temp = partial_path(path)
-        self._writer: Optional[cv2.VideoWriter] = None
+        self._writer: Any = None  # cv2.VideoWriter or H264Writer
         self._first_failed: Optional[int] = None  # the frame OpenCV said it could not write
         #: An error has said what became of the file (its sink adds no "partial" line then).
         self.told = False
@@ -53,10 +56,14 @@ class VideoFile:
         # OpenCV's FFmpeg writer silently drops the last column or row of an odd size: open it
         # one pixel larger and pad each picture (write) so nothing is lost.
         width, height = int(width), int(height)
+        size = (width + width % 2, height + height % 2)
         with quiet_opencv():
-            writer = cv2.VideoWriter(str(self._temp), cv2.CAP_FFMPEG,
-                                     cv2.VideoWriter_fourcc(*self.codec), self.fps,
-                                     (width + width % 2, height + height % 2), self.is_color)
+            if self.codec == "h264":
+                writer: Any = H264Writer(self._temp, fps=self.fps, size=size)
+            else:
+                writer = cv2.VideoWriter(str(self._temp), cv2.CAP_FFMPEG,
+                                         cv2.VideoWriter_fourcc(*self.codec), self.fps, size,
+                                         self.is_color)
         if not writer.isOpened():
             writer.release()
             with contextlib.suppress(OSError):
@@ -64,7 +71,8 @@ class VideoFile:
             why = why_not_writable(self._temp) or (
                 "the disk is full; " if free_bytes(self._temp.parent) < DISK_FULL_BYTES else "")
             self._claim.release()
-            raise OutputError(f"{self.path}: {why}OpenCV cannot open a {self.codec} video writer "
+            maker = "PyAV" if self.codec == "h264" else "OpenCV"
+            raise OutputError(f"{self.path}: {why}{maker} cannot open a {self.codec} video writer "
                               f"for {width}x{height} frames here")
         self._writer = writer
         self.size = (width, height)  # of the pictures written; the file's is padded to even

@@ -59,6 +59,18 @@ def test_pair_flow_is_estimate_flows_dense_field_with_flow_config_defaults(pair,
     np.testing.assert_array_equal(read_flo(out), expected)
 
 
+def test_colour_picture_has_its_legend_unless_no_legend(pair, tmp_path):
+    pictures = {}
+    for name, extra in (("legend", []), ("plain", ["--no-legend"])):
+        vis = tmp_path / f"{name}.png"
+        assert main(["flow", str(pair[0]), str(pair[1]), "-o", str(tmp_path / f"{name}.flo"),
+                     "--vis", str(vis), "--max-magnitude", "3", "-q", *extra]) == 0
+        pictures[name] = cv2.imread(str(vis))
+    changed = np.any(pictures["legend"] != pictures["plain"], axis=2)
+    ys, xs = np.nonzero(changed)
+    assert len(ys) > 200 and ys.min() >= 120 // 2 and xs.min() >= 160 // 2  # bottom right
+
+
 def test_arrows_picture(pair, tmp_path):
     vis = tmp_path / "arrows.png"
     rc = main(["flow", str(pair[0]), str(pair[1]), "-o", str(tmp_path / "f.flo"), "--vis", str(vis),

@@ -141,8 +141,8 @@ def test_csv_and_json_hold_the_rows(sequence: Path, tmp_path: Path) -> None:
 def test_side_by_side_video_size_and_frame_count(sequence: Path, tmp_path: Path) -> None:
     out = tmp_path / "report"
     compare_methods(sequence, methods=METHODS, report_dir=out, masks="none")
-    layout = TileLayout.for_frames(W, H, ["input", *METHODS])
-    assert (layout.width, layout.height) == (3 * W, H)
+    layout = TileLayout.for_frames(W, H, ["input", "ground truth", *METHODS])
+    assert (layout.width, layout.height) == (4 * W, H)
     capture = cv2.VideoCapture(str(out / "side_by_side.mp4"))
     frames = []
     while True:
@@ -440,6 +440,10 @@ def test_ctrl_c_in_the_second_sequence_keeps_the_first(tmp_path: Path, no_ctrl_c
 # --------------------------------------------------------------------------------------------
 
 
+#: The report files compare writes at the top of its folder.
+REPORTS = {"report.txt", "report.csv", "report.json", "report.html"}
+
+
 def listing(folder: Path) -> set:
     """Every file and folder below ``folder``, as relative posix paths (folders end in /)."""
     return {p.relative_to(folder).as_posix() + ("/" if p.is_dir() else "")
@@ -457,15 +461,16 @@ def test_overwrite_leaves_only_this_runs_outputs_and_the_users_files(
     # Named like an engine's output, but not in the previous report.json's list: not compare's.
     (out / "knn.mkv").write_bytes(b"mine as well")
     assert main(argv + ["--methods", "mog2", "--overwrite", "--no-video", "--masks", "mkv"]) == 0
-    assert listing(out) == {"report.txt", "report.csv", "report.json", "mog2.mkv",
+    assert listing(out) == {*REPORTS, "mog2.mkv",
                             "notes.txt", "mog2/", "mog2/keep.txt", "knn.mkv"}
     (out / "knn.mkv").unlink()
     assert (out / "notes.txt").read_text() == "mine"
     data = json.loads((out / "report.json").read_text())
-    assert data["outputs"] == ["report.txt", "report.csv", "report.json", "mog2.mkv"]
+    assert data["outputs"] == ["report.txt", "report.csv", "report.json", "report.html",
+                               "mog2.mkv"]
     # And back to PNG masks: the .mkv goes, the user's files stay.
     assert main(argv + ["--methods", "mog2", "--overwrite", "--no-video"]) == 0
-    assert listing(out) == {"report.txt", "report.csv", "report.json", "notes.txt", "mog2/",
+    assert listing(out) == {*REPORTS, "notes.txt", "mog2/",
                             "mog2/keep.txt", *(f"mog2/bin{k:06d}.png" for k in range(1, 9))}
 
 
@@ -480,12 +485,12 @@ def test_overwrite_clears_a_dataset_roots_sequence_folders(tmp_path: Path) -> No
     compare_methods(root, methods=["mog2"], report_dir=out, max_frames=3, video=False,
                     masks="mkv", overwrite=True)
     assert listing(out) == {
-        "report.txt", "report.csv", "report.json", "cameraJitter/", "cameraJitter/mine.txt",
+        *REPORTS, "cameraJitter/", "cameraJitter/mine.txt",
         "cameraJitter/traffic/", "cameraJitter/traffic/mog2.mkv", "baseline/",
         "baseline/highway/", "baseline/highway/mog2.mkv"}
     compare_methods(root, methods=["knn"], report_dir=out, max_frames=3, video=False,
                     masks="none", overwrite=True)
-    assert listing(out) == {"report.txt", "report.csv", "report.json", "cameraJitter/",
+    assert listing(out) == {*REPORTS, "cameraJitter/",
                             "cameraJitter/mine.txt"}
 
 
@@ -509,7 +514,7 @@ def test_overwrite_without_a_report_json_goes_by_compares_names(tmp_path: Path,
     (out / "holiday" / "beach.mp4").write_bytes(b"not compare's")
     compare_methods(source, methods=["mog2"], report_dir=out, max_frames=3, video=False,
                     masks="none", overwrite=True)
-    assert listing(out) == {"report.txt", "report.csv", "report.json", "unrelated.mkv",
+    assert listing(out) == {*REPORTS, "unrelated.mkv",
                             "holiday/", "holiday/beach.mp4"}
 
 

@@ -7,9 +7,13 @@ import pytest
 
 from bgsub.errors import InputError, OutputError
 from bgsub.io.flowio import (
+    add_colour_wheel,
     arrow_grid,
+    colour_scale,
+    colour_wheel,
     draw_flow_arrows,
     endpoint_error,
+    flow_picture,
     flow_to_color,
     read_flo,
     write_flo,
@@ -172,3 +176,60 @@ def test_max_magnitude_none_is_automatic_and_small_values_work():
     flow = _field()
     assert flow_to_color(flow, max_magnitude=None).shape == (5, 7, 3)
     assert flow_to_color(flow, max_magnitude=1e-3).shape == (5, 7, 3)
+
+
+# --------------------------------------------------------------------------------------------
+# The colour wheel (the colour code's legend)
+# --------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("degrees", [0, 45, 90, 135, 180, 225, 270, 315])
+def test_wheel_pixel_at_an_angle_has_flow_to_colors_colour_of_that_direction(degrees):
+    size, magnitude = 65, 4.0  # odd size: the centre is a pixel, the rim points exact
+    wheel, disc = colour_wheel(magnitude, size=size)
+    theta = np.radians(degrees)
+    centre, radius = (size - 1) / 2, size / 2 - 1
+    r = 0.75 * radius
+    x, y = centre + r * np.cos(theta), centre + r * np.sin(theta)
+    xi, yi = int(round(x)), int(round(y))
+    assert disc[yi, xi]
+    # The direction's own colour, at the speed that radius stands for.
+    vector = np.array([[[np.cos(theta), np.sin(theta)]]]) * 0.75 * magnitude
+    expected = flow_to_color(vector, max_magnitude=magnitude)[0, 0].astype(int)
+    # (rounding the position moves the angle by under a degree)
+    assert np.abs(wheel[yi, xi].astype(int) - expected).max() <= 6
+
+
+def test_wheel_centre_is_white_right_is_red_and_outside_the_disc_is_left_out():
+    wheel, disc = colour_wheel(2.0, size=65)
+    assert (wheel[32, 32] == 255).all()
+    b, g, r = wheel[32, 62].astype(int)
+    assert r > 200 and g < 60 and b < 60  # right = red (Middlebury)
+    assert not disc[0, 0] and disc[32, 32] and disc.sum() > 0.7 * 65 * 65
+
+
+def test_colour_scale_is_the_given_or_the_largest_known_magnitude():
+    flow = np.zeros((2, 2, 2))
+    flow[0, 0] = (3, 4)
+    flow[1, 1] = np.nan
+    assert colour_scale(flow) == 5.0
+    assert colour_scale(flow, max_magnitude=2.5) == 2.5
+    assert colour_scale(np.full((2, 2, 2), np.nan)) == 0.0
+
+
+def test_legend_goes_in_the_bottom_right_corner_only():
+    flow = np.zeros((120, 160, 2), np.float32)
+    flow[..., 0] = 1.0
+    plain = flow_picture(flow, max_magnitude=2.0)
+    shown = flow_picture(flow, max_magnitude=2.0, legend=True)
+    changed = np.any(shown != plain, axis=2)
+    ys, xs = np.nonzero(changed)
+    assert changed.any() and ys.min() > 120 // 2 and xs.min() > 160 // 2
+    # The wheel as colour_wheel draws it, 24 px (a fifth of 120), 4 px from the corner.
+    wheel, disc = colour_wheel(2.0, size=24)
+    assert (shown[-4 - 24:-4, -4 - 24:-4][disc] == wheel[disc]).all()
+
+
+def test_legend_leaves_tiny_pictures_alone():
+    picture = np.zeros((30, 40, 3), np.uint8)
+    assert (add_colour_wheel(picture, 3.0) == picture).all()

@@ -224,6 +224,33 @@ def _outputs(args: argparse.Namespace) -> dict:
     return {kind: str(path) for kind, path in given.items() if path}
 
 
+def _open_input(args: argparse.Namespace, params: dict) -> tuple:
+    """``(source, params)``: the input opened, the outputs checked and the parameters' files
+    (``--roi``, ``--motion-in``) read; a refusal closes the source (a camera stays open
+    otherwise)."""
+    source = open_source(args.input, **common.source_kwargs(args),
+                         stall_seconds=args.stall_timeout)
+    try:
+        _check_outputs(args, source)
+        params = run_inputs.check_inputs(params, width=source.info.width,
+                                         height=source.info.height)
+    except BaseException:
+        source.close()
+        raise
+    return source, params
+
+
+def _input_notes(args: argparse.Namespace, source: FrameSource, engine: Any) -> None:
+    """What the run should say of its input once it ended: a video or stream that ended
+    early (a warning), a known camera motion shorter than the input."""
+    short = source.truncation()  # a video ended well before its declared end, a stream stalled
+    if short:
+        common.warn(short)
+    motion = run_inputs.motion_note(engine)
+    if motion:
+        common.note(motion, quiet=args.quiet)
+
+
 def run(args: argparse.Namespace) -> int:
     method = _method(args.method)
     params = run_inputs.engine_params(args, method, run_extras.engine_params(args, method))
@@ -234,15 +261,8 @@ def run(args: argparse.Namespace) -> int:
     if status is not None:
         return status
     tracking = run_extras.tracker_config(args)
-    source = open_source(args.input, **common.source_kwargs(args),
-                         stall_seconds=args.stall_timeout)
+    source, params = _open_input(args, params)
     info = source.info
-    try:
-        _check_outputs(args, source)
-        params = run_inputs.check_inputs(params, width=info.width, height=info.height)
-    except BaseException:
-        source.close()  # (a camera held open)
-        raise
     engine = engines.create_engine(method, **params)
     if args.flow_vis and not engines.supports(engine, "debug_image"):
         raise InputError(f"--flow-vis: method {method!r} cannot draw its motion (it has no "
@@ -276,12 +296,7 @@ def run(args: argparse.Namespace) -> int:
                                          codecs=codecs)
             raise
 
-    short = source.truncation()  # decoding ended well before the end the video declares
-    if short:
-        common.warn(short)
-    motion = run_inputs.motion_note(engine)
-    if motion:
-        common.note(motion, quiet=args.quiet)
+    _input_notes(args, source, engine)
     written = list(_outputs(args).values())
     common.note(_summary(stats, method, written), quiet=args.quiet)
     for kind, codec in codecs.items():  # which picture videos browsers play

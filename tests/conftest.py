@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 
 import numpy as np
@@ -183,3 +184,77 @@ def write_box_clip(path, *, seed=0, n=12, width=64, height=48):
         writer.write(frame)
     writer.release()
     return path
+
+
+def write_mp4_clip(path, *, seed=0, n=20, width=64, height=48):
+    """A small MPEG-4 ``.mp4`` of ``write_box_clip``'s scene (lossy); returns ``path``."""
+    import cv2
+
+    rng = np.random.default_rng(seed)
+    writer = cv2.VideoWriter(str(path), cv2.CAP_FFMPEG, cv2.VideoWriter_fourcc(*"mp4v"), 25.0,
+                             (width, height), True)
+    for k in range(n):
+        frame = rng.integers(0, 40, (height, width, 3), dtype=np.uint8)
+        frame[15:30, 2 * k:2 * k + 12] = 230
+        writer.write(frame)
+    writer.release()
+    return path
+
+
+@contextlib.contextmanager
+def serve_folder(folder, *, cut_at=None, hold=0.0):
+    """Serve the files of ``folder`` over HTTP from 127.0.0.1 in a thread; yields the base URL
+    (``http://127.0.0.1:PORT/``). Byte ranges are served, as video players ask for them (an
+    ``.mp4`` keeps its index at its end). With ``cut_at`` (a fraction), every response sends
+    only that part of the file, waits ``hold`` seconds, and closes: a stream that stalls
+    (``hold`` longer than the reader's timeout) or drops (no ``hold``)."""
+    import http.server
+    import re
+    import threading
+    import time
+
+    root = Path(folder)
+
+    class Handler(http.server.BaseHTTPRequestHandler):
+        def log_message(self, *args):
+            pass
+
+        def do_GET(self):
+            path = root / self.path.lstrip("/").split("?")[0]
+            if not path.is_file():
+                self.send_error(404)
+                return
+            data = path.read_bytes()
+            found = re.match(r"bytes=(\d+)-(\d*)", self.headers.get("Range", ""))
+            if cut_at is not None:
+                self.send_response(200)
+                body = data[:int(len(data) * cut_at)]
+            elif found:
+                first = int(found.group(1))
+                last = int(found.group(2) or len(data) - 1)
+                self.send_response(206)
+                self.send_header("Content-Range", f"bytes {first}-{last}/{len(data)}")
+                body = data[first:last + 1]
+            else:
+                self.send_response(200)
+                body = data
+            if cut_at is None:
+                self.send_header("Accept-Ranges", "bytes")
+                self.send_header("Content-Length", str(len(body)))
+            self.end_headers()
+            try:
+                self.wfile.write(body)
+                self.wfile.flush()
+                time.sleep(hold)
+            except OSError:  # the reader went away
+                pass
+
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Handler)
+    server.daemon_threads = True
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    try:
+        yield f"http://127.0.0.1:{server.server_address[1]}/"
+    finally:
+        server.shutdown()
+        server.server_close()

@@ -2,6 +2,9 @@
 
 An argument becomes:
 
+* a camera index, video device or URL (``0``, ``/dev/video0``, ``rtsp://...``) -- one live
+  source, never globbed (a URL's ``?`` is a query), named ``camera0``, ``video0`` or after
+  the URL's last path part;
 * an existing file -- one video;
 * a folder holding images (or a CDnet sequence folder, which holds ``input/``) -- one image
   sequence; a folder holding no images but video files -- each of those videos;
@@ -24,6 +27,7 @@ from typing import Dict, Iterable, List
 
 from bgsub.errors import InputError
 from bgsub.io.sources import IMAGE_EXTENSIONS, VIDEO_SUFFIXES, natural_key
+from bgsub.io.streams import stream_kind, stream_name
 
 
 @dataclass(frozen=True)
@@ -83,7 +87,9 @@ def expand(arguments: Iterable[str]) -> List[BatchInput]:
     items: List[BatchInput] = []
     for text in arguments:
         path = Path(text)
-        if path.is_dir():
+        if stream_kind(text) is not None:
+            items.append(BatchInput(text, stream_name(text)))
+        elif path.is_dir():
             items += _from_folder(text)
         elif not path.exists() and glob.has_magic(text):
             items += _from_glob(text)

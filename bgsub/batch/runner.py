@@ -22,6 +22,7 @@ from bgsub.batch.job import DONE, FAILED, INTERRUPTED, NOT_STARTED, SKIPPED, Job
 from bgsub.batch.plan import OutputLayout
 from bgsub.errors import InputError, OutputError
 from bgsub.io.sinks import write_atomically
+from bgsub.io.streams import is_live
 
 
 @dataclass
@@ -82,6 +83,9 @@ def plan(items: Iterable[BatchInput], layout: OutputLayout, *, method: str,
         if refused is None:
             decision, refused = record.decide(job.record, settings=job.settings(),
                                               outputs=outputs, overwrite=overwrite)
+        if decision == record.SKIP and is_live(item.path):
+            refused = (f"{outputs['masks']} exists, and {item.path} is a live source, recorded "
+                       "anew each time (--overwrite replaces it)")
         if refused:
             settled.append(JobResult(item.name, item.path, FAILED, outputs, message=refused))
         elif decision == record.SKIP:

@@ -122,6 +122,17 @@ def _closing_line(report: Any, seconds: float, folder: str) -> str:
     return line
 
 
+def _source(args: argparse.Namespace) -> dict:
+    """The ``open_source`` keywords of every input (the stall timeout only when given, so the
+    records of batches run without it stay as they were)."""
+    from bgsub.cli import common
+
+    source = common.source_kwargs(args)
+    if getattr(args, "stall_timeout", None) is not None:
+        source["stall_seconds"] = args.stall_timeout
+    return source
+
+
 def run_batch(args: argparse.Namespace, *, method: str, params: dict) -> int:
     """``bgsub run`` with several inputs; the exit status."""
     from tqdm import tqdm
@@ -140,7 +151,7 @@ def run_batch(args: argparse.Namespace, *, method: str, params: dict) -> int:
     run_params = {k: v for k, v in threads.engine_params(method, params, threads=per_job).items()
                   if k not in params}
     todo, settled = runner.plan(items, layout, method=method, params=params,
-                                run_params=run_params, source=common.source_kwargs(args),
+                                run_params=run_params, source=_source(args),
                                 overwrite=args.overwrite, threads=per_job,
                                 progress=jobs == 1 and not args.scheduler and not args.quiet)
     results = {result.name: result for result in settled}
@@ -174,6 +185,13 @@ def run_batch(args: argparse.Namespace, *, method: str, params: dict) -> int:
     if interrupted:
         raise KeyboardInterrupt
     return 0 if report.ok else 1
+
+
+def is_batch(args: argparse.Namespace) -> bool:
+    """Whether ``args.input`` (the command line's inputs) makes a batch."""
+    from bgsub.batch import inputs
+
+    return inputs.is_batch(args.input)
 
 
 def dispatch(args: argparse.Namespace, *, method: str, params: dict) -> Optional[int]:

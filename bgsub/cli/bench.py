@@ -39,7 +39,8 @@ def register(subparsers: Any) -> None:
                         help="frame size, at least 16x16, odd sizes too: nothing is written "
                              "(default: 320x240; below 64x48, the smallest sample scene, the "
                              "clip is a panning random texture)")
-    parser.add_argument("-m", "--methods", default=None, metavar="M1,M2",
+    parser.add_argument("-m", "--methods", "--method", dest="methods", default=None,
+                        metavar="M1,M2",
                         help="comma-separated engines (default: all registered; see "
                              "`bgsub methods`)")
     parser.add_argument("--frames", type=int, default=50, metavar="N",

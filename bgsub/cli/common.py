@@ -152,14 +152,11 @@ def warn_if_binary_model(model: Any, image: Any, *, what: str = "") -> None:
 
 
 def warn_if_binary_model_on_source(model: Any, source: Any, *, what: str = "") -> None:
-    """:func:`warn_if_binary_model` for the first frame of a :class:`bgsub.io.sources.FrameSource`,
-    read in a pass of its own, and only when the model is a binary one."""
+    """:func:`warn_if_binary_model` for the first frame of a :class:`bgsub.io.sources.FrameSource`
+    (:meth:`~bgsub.io.sources.FrameSource.first_frame`: a live source is not read again), and
+    only when the model is a binary one."""
     if not is_binary_model(model):
         return
-    frames = iter(source)
-    try:
-        first = next(frames, None)
-    finally:
-        frames.close()
+    first = source.first_frame()
     if first is not None:
-        warn_if_binary_model(model, first[1], what=what)
+        warn_if_binary_model(model, first, what=what)

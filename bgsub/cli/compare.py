@@ -70,7 +70,8 @@ def register(subparsers: Any) -> None:
                         help="folder for the report, masks and videos (must not exist or be "
                              "empty, unless --overwrite: then the previous compare run's outputs "
                              "there are removed, other files stay)")
-    parser.add_argument("-m", "--methods", default=None, metavar="M1,M2,...",
+    parser.add_argument("-m", "--methods", "--method", dest="methods", default=None,
+                        metavar="M1,M2,...",
                         help="comma-separated engines (default: all registered; see "
                              "`bgsub methods`)")
     parser.add_argument("-p", "--param", action="append", default=[],

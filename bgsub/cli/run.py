@@ -13,7 +13,7 @@ import shlex
 from typing import Any, List, Optional
 
 from bgsub import engines
-from bgsub.cli import batch, common, run_extras
+from bgsub.cli import batch, common, run_extras, run_inputs
 from bgsub.errors import InputError
 from bgsub.evaluation.cdnet import VideoFrames
 from bgsub.io.loop import FrameLoop, RunStats
@@ -32,18 +32,21 @@ from bgsub.io.writers import DebugImageWriter, MaskWriter, MotionWriter, Progres
 from bgsub.objects import ObjectWriter, check_objects_output
 
 _DESCRIPTION = """\
-Find the moving objects in a video and write one foreground mask per frame (0 = background,
-255 = foreground). INPUT is a video file, a folder of images (natural order; a CDnet sequence
-folder reads its input/ folder) or a quoted glob pattern. OUTPUT is a mask video (.mkv or .avi:
-lossless FFV1; .mp4 or .mov: lossy) or, for a name without an extension, a folder of CDnet-style
-binNNNNNN.png masks; other extensions are refused. Masks are numbered by position in INPUT,
-whatever the frames' file names: bin000001.png is the mask of INPUT's first frame (the video's
-first, or the folder's or glob's first image in natural order), and --start/--step keep that
-count (--start 100 --step 2: bin000101.png, bin000103.png, ...). So a whole CDnet input/ folder
-gives bin000123.png for in000123.jpg, but a glob or folder of part of a sequence
-('input/in00002*.jpg') starts again at bin000001.png: to keep the input's numbers, give the
-whole folder with --start/--stop. A mask video holds no frame numbers: to score one written
-with --start/--step, give `bgsub eval` the same --start/--step/--stop.
+Find the moving objects in a video and write one foreground mask per frame (0 = background, 255
+= foreground). INPUT is a video file, a folder of images (natural order; a CDnet sequence
+folder reads its input/ folder), a quoted glob pattern, or a live source opened as OpenCV opens
+it: a camera index (0), a video device (/dev/video0) or a URL (rtsp://...,
+http://.../clip.mp4), read until it ends, --max-frames, or Ctrl-C (a stall or a drop is
+reported in one line). OUTPUT is a mask video (.mkv or .avi: lossless FFV1; .mp4 or .mov:
+lossy) or, for a name without an extension, a folder of CDnet-style binNNNNNN.png masks; other
+extensions are refused. Masks are numbered by position in INPUT, whatever the frames' file
+names: bin000001.png is the mask of INPUT's first frame (the video's first, or the folder's or
+glob's first image in natural order), and --start/--step keep that count (--start 100 --step 2:
+bin000101.png, bin000103.png, ...). So a whole CDnet input/ folder gives bin000123.png for
+in000123.jpg, but a glob or folder of part of a sequence ('input/in00002*.jpg') starts again at
+bin000001.png: to keep the input's numbers, give the whole folder with --start/--stop. A mask
+video holds no frame numbers: to score one written with --start/--step, give `bgsub eval` the
+same --start/--step/--stop.
 
 Outputs are written under a temporary name and renamed when done; after Ctrl-C they hold the
 frames processed so far and are still valid."""
@@ -59,6 +62,11 @@ examples:
   bgsub run clip.mp4 -o masks.mkv --motion cam.npy     the estimated camera motion of every frame
   bgsub run clip.mp4 -o masks.mkv --objects objects.jsonl --vis overlay.mp4
   bgsub run clip.mp4 -o masks.mkv --config grbm.toml --json
+  bgsub run 0 -o camera.mkv --max-frames 500           a camera, 500 frames (or until Ctrl-C)
+  bgsub run rtsp://cam.local/live -o live.mkv --stall-timeout 5
+  bgsub run clip.mp4 -o masks.mkv --roi roi.png        no foreground outside roi.png's white
+  bgsub run clip.mp4 -o masks.mkv --motion-in cam.npy  a known camera motion, not estimated
+  bgsub run clip.mp4 -o masks.mkv --model natural      grbm's model (or an .npz path)
 
 --objects writes the tracked objects of every frame (and --vis draws their boxes and ids);
 --config reads engine parameters from a TOML file; --json prints a summary for scripts.
@@ -71,14 +79,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         epilog=_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("input", metavar="INPUT", nargs="+",
-                        help="video file, image folder, or glob pattern such as 'frames/*.png'; "
-                             "several (or a folder or glob of videos) make a batch")
+                        help="video file, image folder, glob pattern such as 'frames/*.png', "
+                             "camera index, video device or URL; several (or a folder or glob "
+                             "of videos) make a batch")
     parser.add_argument("-o", "--output", required=True, metavar="OUTPUT",
                         help="mask video (.mkv/.avi lossless, .mp4/.mov lossy), or a name without "
                              "an extension for a folder of binNNNNNN.png masks")
-    parser.add_argument("-m", "--method", default=None, metavar="NAME",
-                        help=f"engine to use (default: {engines.DEFAULT_METHOD}; see "
-                             "`bgsub methods`)")
+    parser.add_argument("-m", "--method", "--methods", dest="method", default=None,
+                        metavar="NAME", help=f"engine to use (default: "
+                                             f"{engines.DEFAULT_METHOD}; see `bgsub methods`)")
     parser.add_argument("-p", "--param", action="append", default=[], metavar="KEY=VALUE",
                         help="set an engine parameter, e.g. --param history=200 (repeatable)")
     parser.add_argument("--vis", metavar="VIDEO", default=None,
@@ -95,6 +104,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                              "moving-camera engines)")
     run_extras.add_options(parser)
     common.add_source_options(parser)
+    run_inputs.add_options(parser)
     common.add_output_options(parser, quiet_help="no progress bar and no notes on stderr "
                                                  "(warnings and errors are still printed)")
     batch.add_batch_options(parser)
@@ -107,6 +117,9 @@ def _method(name: Optional[str]) -> str:
     if not name.strip():  # --method "" is a mistake, not "the default"
         raise InputError("--method is empty (give an engine name, or leave it out for "
                          f"{engines.default_method()}; see `bgsub methods`)")
+    if "," in name:
+        raise InputError(f"--method {name}: run takes one method (`bgsub compare --methods "
+                         "a,b` runs several on the same input)")
     return name
 
 
@@ -211,16 +224,45 @@ def _outputs(args: argparse.Namespace) -> dict:
     return {kind: str(path) for kind, path in given.items() if path}
 
 
+def _open_input(args: argparse.Namespace, params: dict) -> tuple:
+    """``(source, params)``: the input opened, the outputs checked and the parameters' files
+    (``--roi``, ``--motion-in``) read; a refusal closes the source (a camera stays open
+    otherwise)."""
+    source = open_source(args.input, **common.source_kwargs(args),
+                         stall_seconds=args.stall_timeout)
+    try:
+        _check_outputs(args, source)
+        params = run_inputs.check_inputs(params, width=source.info.width,
+                                         height=source.info.height)
+    except BaseException:
+        source.close()
+        raise
+    return source, params
+
+
+def _input_notes(args: argparse.Namespace, source: FrameSource, engine: Any) -> None:
+    """What the run should say of its input once it ended: a video or stream that ended
+    early (a warning), a known camera motion shorter than the input."""
+    short = source.truncation()  # a video ended well before its declared end, a stream stalled
+    if short:
+        common.warn(short)
+    motion = run_inputs.motion_note(engine)
+    if motion:
+        common.note(motion, quiet=args.quiet)
+
+
 def run(args: argparse.Namespace) -> int:
     method = _method(args.method)
-    params = run_extras.engine_params(args, method)
+    params = run_inputs.engine_params(args, method, run_extras.engine_params(args, method))
+    run_inputs.apply_max_frames(args)
+    if args.motion_in and batch.is_batch(args):
+        raise InputError("--motion-in is for a single input (a camera motion is one video's)")
     status = batch.dispatch(args, method=method, params=params)  # several inputs
     if status is not None:
         return status
     tracking = run_extras.tracker_config(args)
-    source = open_source(args.input, **common.source_kwargs(args))
+    source, params = _open_input(args, params)
     info = source.info
-    _check_outputs(args, source)
     engine = engines.create_engine(method, **params)
     if args.flow_vis and not engines.supports(engine, "debug_image"):
         raise InputError(f"--flow-vis: method {method!r} cannot draw its motion (it has no "
@@ -254,9 +296,7 @@ def run(args: argparse.Namespace) -> int:
                                          codecs=codecs)
             raise
 
-    short = source.truncation()  # decoding ended well before the end the video declares
-    if short:
-        common.warn(short)
+    _input_notes(args, source, engine)
     written = list(_outputs(args).values())
     common.note(_summary(stats, method, written), quiet=args.quiet)
     for kind, codec in codecs.items():  # which picture videos browsers play

@@ -25,6 +25,7 @@ from typing import Any, Callable, Dict, Iterable, List, Optional
 import cv2
 import numpy as np
 
+from bgsub.engines.roi import ROI_HELP, RegionOfInterest
 from bgsub.errors import InputError, describe_shape
 
 # Modules whose import registers the built-in engines (imported on first use of the registry,
@@ -37,7 +38,8 @@ DEFAULT_METHOD = "grbm"
 
 def opencv_keywords(apply: Callable[..., np.ndarray]) -> Callable[..., np.ndarray]:
     """Decorate an engine's ``apply`` so it also takes OpenCV's keyword spelling:
-    ``apply(frame, learningRate=0.01)`` as in code written for ``cv2.BackgroundSubtractor``."""
+    ``apply(frame, learningRate=0.01)`` as in code written for ``cv2.BackgroundSubtractor``,
+    and so its mask is cleared outside the engine's region of interest (:attr:`Engine.roi`)."""
 
     @functools.wraps(apply)
     def wrapper(self: "Engine", image: np.ndarray, fgmask: Optional[np.ndarray] = None,
@@ -47,7 +49,14 @@ def opencv_keywords(apply: Callable[..., np.ndarray]) -> Callable[..., np.ndarra
             if learning_rate != -1.0:
                 raise InputError("give learning_rate or OpenCV's learningRate, not both")
             learning_rate = learningRate
-        return apply(self, image, fgmask, learning_rate)
+        roi = getattr(self, "roi", None)
+        if roi is None:
+            return apply(self, image, fgmask, learning_rate)
+        if isinstance(image, np.ndarray) and image.ndim >= 2:
+            roi.at(image.shape)  # a region of another aspect ratio: refused before any change
+        mask = apply(self, image, fgmask, learning_rate)
+        roi.clear_outside(mask)
+        return mask
 
     if wrapper.__doc__ is None:
         wrapper.__doc__ = Engine.apply.__doc__  # help(engine.apply) shows the shared contract
@@ -137,6 +146,9 @@ class Engine(ABC):
     last_motion: Optional[np.ndarray]
     #: ``debug_image() -> Optional[(H, W, 3) uint8]``: a picture of what the engine saw.
     debug_image: Callable[[], Optional[np.ndarray]]
+    #: The region watched (:class:`bgsub.engines.roi.RegionOfInterest`), None = the whole
+    #: frame: set from the ``roi`` parameter every registered engine takes.
+    roi: Optional[Any] = None
 
     @abstractmethod
     def apply(
@@ -311,6 +323,10 @@ LEARNING_RATE = Param(-1.0, "background learning rate of every frame, as OpenCV'
                             "1 = restart it every frame", high=1.0)
 
 
+#: The ``roi`` parameter every registered engine takes (:mod:`bgsub.engines.roi`).
+ROI = Param("", ROI_HELP)
+
+
 @dataclass(frozen=True)
 class EngineSpec:
     """A registered engine: how to build it and what can be tuned."""
@@ -335,7 +351,12 @@ class EngineSpec:
             except InputError as err:
                 raise InputError(f"{self.name}: {err}") from None
             values[name] = value
-        return self.factory(**values)
+        roi = values.pop("roi") if self.params.get("roi") is ROI else ""
+        region = None if isinstance(roi, str) and not roi else RegionOfInterest.from_value(roi)
+        engine = self.factory(**values)
+        if region is not None:
+            engine.roi = region
+        return engine
 
 
 _REGISTRY: Dict[str, EngineSpec] = {}
@@ -347,10 +368,14 @@ _load_lock = threading.RLock()
 def register_engine(
     name: str, description: str, params: Optional[Dict[str, Param]] = None
 ) -> Callable[[Callable[..., Engine]], Callable[..., Engine]]:
-    """Decorator: register ``factory(**params) -> Engine`` under ``name``."""
+    """Decorator: register ``factory(**params) -> Engine`` under ``name``. Every engine also
+    takes :data:`ROI` (``roi``), which the registry applies (:attr:`Engine.roi`), not the
+    factory."""
 
     def decorate(factory: Callable[..., Engine]) -> Callable[..., Engine]:
-        _REGISTRY[name] = EngineSpec(name, description, factory, dict(params or {}))
+        table = dict(params or {})
+        table.setdefault("roi", ROI)  # (an engine may take "roi" itself)
+        _REGISTRY[name] = EngineSpec(name, description, factory, table)
         return factory
 
     return decorate

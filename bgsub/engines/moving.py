@@ -32,13 +32,14 @@ import numpy as np
 
 from bgsub.background.compensated import BackgroundConfig, CompensatedBackground
 from bgsub.background.fusion import Fusion, FusionConfig
-from bgsub.engines.base import (Engine, check_fgmask, check_frame, check_learning_rate,
+from bgsub.engines.base import (Engine, Param, check_fgmask, check_frame, check_learning_rate,
                                 opencv_keywords, register_engine)
 from bgsub.engines.config import (MIN_WORK_WIDTH, CameraConfig, EngineConfig,
                                   engine_params, stage_configs)
 from bgsub.engines.frontend import NO_MOTION, CameraFit, MotionFrontEnd, MotionResult
-from bgsub.engines.parts import (FrozenModelRegistration, MotionHoldBack, SceneCut,
-                                 SmallRegionRule, StillCameraSwitch)
+from bgsub.engines.parts import (KNOWN_MOTION_HELP, FrozenModelRegistration, KnownMotion,
+                                 MotionHoldBack, SceneCut, SmallRegionRule, StillCameraSwitch,
+                                 work_scale)
 from bgsub.engines.threads import SecondThread, limited_threads
 from bgsub.errors import InputError
 from bgsub.io.flowio import add_colour_wheel, draw_flow_arrows
@@ -76,15 +77,18 @@ class MovingCameraEngine(Engine):
     frontend, config, camera, bg, fusion
         The front end, the engine's and the camera stage's settings, the compensated
         background model and the fusion stage.
-    small_region, hold_back, registration, scene_cut, still_switch
+    small_region, hold_back, registration, scene_cut, still_switch, known_motion
         The special behaviours (:mod:`bgsub.engines.parts`; ``still_switch`` None when
-        ``still_model`` is 0).
+        ``still_model`` is 0, ``known_motion`` None when the camera motion is fitted). The
+        region of interest (``roi``, :mod:`bgsub.engines.roi`) also leaves the vectors outside
+        it out of the fit.
     """
 
     def __init__(self, frontend: MotionFrontEnd, *, engine: Optional[EngineConfig] = None,
                  camera: Optional[CameraConfig] = None,
                  background: Optional[BackgroundConfig] = None,
-                 fusion: Optional[FusionConfig] = None) -> None:
+                 fusion: Optional[FusionConfig] = None,
+                 known_motion: Optional[KnownMotion] = None) -> None:
         defaults = stage_configs({}, frontend.stage_defaults)
         self.frontend = frontend
         self.name = frontend.name or "moving-camera"
@@ -102,6 +106,7 @@ class MovingCameraEngine(Engine):
                                                window=c.still_window)
                              if c.still_model > 0 else None)
         self.thread = SecondThread(overlap=c.overlap, name=self.name)
+        self.known_motion = known_motion
         self.last_status = "ok"
         self._prev: Any = None  # the previous frame as the front end keeps it
         self._prev_gray: Optional[np.ndarray] = None
@@ -125,6 +130,8 @@ class MovingCameraEngine(Engine):
         rate = check_learning_rate(learning_rate, default=self.config.learning_rate)
         check_fgmask(fgmask, image.shape[:2])
         self._in_shape = image.shape
+        if self.known_motion is not None:
+            self.known_motion.next_frame()
         with limited_threads(self.config.threads):
             work = self._to_work(image)
             if work is image:
@@ -171,7 +178,10 @@ class MovingCameraEngine(Engine):
         applied = self._to_apply(matrix, gray, register=rate == 0.0 and result.motion.ok)
         score, violation = self._compare(work, gray, result, matrix, applied, rate,
                                          fixed_threshold=refused)
-        if self.scene_cut.is_cut(score, self.bg.age < self.bg.config.min_age, result):
+        unseen = self.bg.age < self.bg.config.min_age
+        if self.roi is not None:  # (what changes outside the region is no new shot)
+            unseen = unseen | ~self.roi.at(gray.shape)
+        if self.scene_cut.is_cut(score, unseen, result):
             self._restart(work, gray, cur)
             self.last_status = "fallback: scene cut"
             return empty
@@ -191,13 +201,24 @@ class MovingCameraEngine(Engine):
     def _measure(self, cur: Any, gray: np.ndarray) -> MotionResult:
         """The front end's motion from the previous frame to ``cur``, while the second thread
         finishes the last frame's update and prepares ``cur`` for the next pair."""
+        fit, prior = self._camera_fit(gray.shape)
         with self.thread.alongside(self._finish_update, lambda: self.frontend.prepare(cur)):
             if np.array_equal(gray, self._prev_gray):
                 # A repeated frame (a frame-rate conversion's duplicate, a paused stream): the
                 # camera did not move, whatever a noisy reading would say; a frozen model
                 # would otherwise drift by that reading's error.
                 return NO_MOTION
-            return self.frontend.measure(self._prev, cur, prior=self._prev_motion, fit=self.fit)
+            result = self.frontend.measure(self._prev, cur, prior=prior, fit=fit)
+        return result if self.roi is None else self.roi.restrict(result, gray.shape)
+
+    def _camera_fit(self, shape: tuple) -> tuple:
+        """``(fit, prior)`` for a frame of working ``shape``: the RANSAC fit and the last good
+        motion, or the known motion as both; over the region of interest's vectors only."""
+        fit, prior = self.fit, self._prev_motion
+        known = self.known_motion and self.known_motion.matrix(self._in_shape, shape)
+        if known is not None:
+            fit, prior = KnownMotion.fit(known, self.camera.ransac_threshold), known
+        return (fit, prior) if self.roi is None else (self.roi.restrict_fit(fit), prior)
 
     def _camera_matrix(self, result: MotionResult, refused: bool) -> tuple:
         """``(matrix, status)``: the fit, or for a refused fit the previous frame's motion (the
@@ -315,10 +336,7 @@ class MovingCameraEngine(Engine):
         ww, wh = work_size(w, h, self.config.work_width)
         if (ww, wh) == (w, h):
             return matrix.copy()
-        # Working-size pixel centres from the input's (cv2.resize's convention).
-        sx, sy = ww / w, wh / h
-        scale = np.array([[sx, 0.0, 0.5 * (sx - 1.0)], [0.0, sy, 0.5 * (sy - 1.0)],
-                          [0.0, 0.0, 1.0]])
+        scale = work_scale((h, w), (wh, ww))
         return np.linalg.solve(scale, matrix @ scale)
 
     def get_background_image(self) -> Optional[np.ndarray]:
@@ -390,18 +408,20 @@ def register_frontend(frontend_type: Type[MotionFrontEnd]) -> None:
     ``create_engine(name, **params)`` builds it."""
     name, overrides = frontend_type.name, dict(frontend_type.stage_defaults)
     front = frontend_type.params()
-    params = engine_params(front, overrides)
+    params = {**engine_params(front, overrides), "known_motion": Param("", KNOWN_MOTION_HELP)}
 
-    def factory(**values: Any) -> MovingCameraEngine:
+    def factory(*, known_motion: Any, **values: Any) -> MovingCameraEngine:
         try:
             stages = stage_configs(values, overrides)
         except InputError as err:
             raise InputError(f"{name}: {err}") from None
+        given = (None if isinstance(known_motion, str) and not known_motion
+                 else KnownMotion.from_value(known_motion))
         frontend = frontend_type.from_params(**{k: v for k, v in values.items() if k in front})
         return MovingCameraEngine(frontend, engine=stages[EngineConfig],
                                   camera=stages[CameraConfig],
                                   background=stages[BackgroundConfig],
-                                  fusion=stages[FusionConfig])
+                                  fusion=stages[FusionConfig], known_motion=given)
 
     factory.__module__ = frontend_type.__module__  # the engine is the front end's
     register_engine(name, frontend_type.description, params)(factory)

@@ -14,7 +14,9 @@ The backends (PySceneDetect style):
   (``cv2.VideoCapture(path, cv2.CAP_FFMPEG)``);
 * **folder** -- the images of a folder in natural order (``in2.jpg`` before ``in10.jpg``); a CDnet
   sequence folder (one holding ``input/``) reads its ``input/`` folder;
-* **glob** -- the images matching a pattern such as ``"frames/*.png"``, in natural order.
+* **glob** -- the images matching a pattern such as ``"frames/*.png"``, in natural order;
+* **stream** -- a camera index (``0``), a video device (``/dev/video0``) or a URL
+  (``rtsp://...``, ``http://.../clip.mp4``), read once as it comes (:mod:`bgsub.io.streams`).
 
 Problems a user can fix (missing or unreadable input, mixed image sizes, frames smaller than a
 patch, an empty frame range, bad options) raise :class:`bgsub.errors.InputError` with one line.
@@ -33,7 +35,7 @@ import threading
 import weakref
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterator, List, Optional, Sequence, Tuple, Union
+from typing import Any, Iterator, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -89,7 +91,8 @@ class VideoInfo:
         Number of frames this source yields (after start/stop/step), ``None`` if the video does
         not say how long it is.
     kind : str
-        ``"video"``, ``"folder"`` or ``"glob"``.
+        ``"video"``, ``"folder"``, ``"glob"`` or ``"stream"`` (a camera, device or URL: one
+        pass, ``frame_count`` None).
     """
 
     path: str
@@ -400,6 +403,22 @@ class FrameSource:
         self._closed = True
         for iterator in list(self._iterators):
             iterator.close()
+        if callable(getattr(self._backend, "close", None)):
+            self._backend.close()  # (a stream opened but never iterated)
+
+    def first_frame(self) -> Optional[np.ndarray]:
+        """The first frame in range as read, ``(H, W, 3) uint8`` BGR before resizing, or None:
+        a stream's is the frame read when it was opened (it is not opened again), other
+        inputs' is read in a pass of its own."""
+        if self.info.kind == "stream":
+            held = getattr(self._backend, "held_frame", None)
+            return None if held is None else _as_bgr(held)
+        frames = iter(self)
+        try:
+            first = next(frames, None)
+        finally:
+            frames.close()
+        return None if first is None else first[1]
 
     def __iter__(self) -> Iterator[Tuple[int, np.ndarray]]:
         if self._closed:
@@ -429,6 +448,9 @@ class FrameSource:
         stopped well short of the frame count its container declares (a truncated or damaged
         file), else ``None``. A pass that reached its ``stop`` is not short; a few frames of
         difference are allowed, since some containers only estimate their length."""
+        ended = getattr(self._backend, "ended", None)  # a stream: stalled, dropped or ended
+        if ended is not None:
+            return ended
         decoded = getattr(self._backend, "decoding_ended_at", None)
         declared = self._backend.total
         if decoded is None or declared is None:
@@ -471,6 +493,43 @@ def _check_range(start: int, stop: Optional[int], step: int) -> None:
         raise InputError(f"invalid frame range: stop ({stop!r}) must be after start ({start})")
 
 
+def _stream_backend(text: str, *, start: int, stall_seconds: Optional[float]) -> Any:
+    """The backend of a camera index, video device or URL, or None for other inputs."""
+    from bgsub.io.streams import DEFAULT_STALL_SECONDS, StreamBackend, stream_kind
+
+    kind = stream_kind(text)
+    if stall_seconds is not None and not (isinstance(stall_seconds, numbers.Real)
+                                          and math.isfinite(stall_seconds) and stall_seconds > 0):
+        raise InputError(f"the stall timeout must be a number of seconds > 0, not "
+                         f"{stall_seconds!r}")
+    if kind is None:
+        return None
+    return StreamBackend(text, kind, start=start,
+                         stall_seconds=stall_seconds or DEFAULT_STALL_SECONDS)
+
+
+def _backend(path: Union[PathLike, int], *, start: int, stall_seconds: Optional[float]
+             ) -> Tuple[str, Any]:
+    """``(text, backend)`` of the input ``path``: a live source, a folder, a video or a glob."""
+    if isinstance(path, (int, np.integer)) and not isinstance(path, bool):
+        path = str(int(path))  # a camera index
+    text = given_path(path, what="input", hint="a video file, an image folder or a glob pattern")
+    location = Path(text)
+    stream = _stream_backend(text, start=start, stall_seconds=stall_seconds)
+    if stream is not None:  # a camera, device or URL
+        return text, stream
+    if location.is_dir():
+        return text, _folder_backend(location)
+    if location.is_file():
+        return text, _VideoBackend(location)
+    if glob.has_magic(text):
+        return text, _glob_backend(text)
+    if location.exists():
+        raise InputError(f"{text}: not a video file, image folder or glob pattern (a pipe, "
+                         "socket or other special file)")
+    raise InputError(f"{text}: no such file or folder")
+
+
 #: Largest side of a resized frame (8K video is 7680 wide).
 MAX_SIDE = 16384
 
@@ -501,16 +560,20 @@ def output_size(width: int, height: int, *, scale: Optional[float] = None,
     return size
 
 
-def open_source(path: PathLike, *, start: int = 0, stop: Optional[int] = None, step: int = 1,
-                scale: Optional[float] = None, width: Optional[int] = None,
-                fps: Optional[float] = None) -> FrameSource:
-    """Open a video file, an image folder or a glob pattern as a stream of frames.
+def open_source(path: Union[PathLike, int], *, start: int = 0, stop: Optional[int] = None,
+                step: int = 1, scale: Optional[float] = None, width: Optional[int] = None,
+                fps: Optional[float] = None, stall_seconds: Optional[float] = None
+                ) -> FrameSource:
+    """Open a video file, an image folder, a glob pattern or a live source as a stream of
+    frames.
 
     Parameters
     ----------
-    path : str or path
-        A video file, a folder of images (a CDnet sequence folder reads its ``input/``), or a
-        glob pattern such as ``"frames/*.png"``.
+    path : str, path or int
+        A video file, a folder of images (a CDnet sequence folder reads its ``input/``), a
+        glob pattern such as ``"frames/*.png"``, or a live source read once as OpenCV's
+        ``cv2.VideoCapture`` opens it: a camera index (``0`` or ``"0"``), a video device
+        (``"/dev/video0"``) or a URL (``"rtsp://..."``, ``"http://.../clip.mp4"``).
     start, stop, step : int
         Read frames ``start, start + step, ...`` before ``stop`` (0-based; ``stop=None`` is the
         end), like ``range(start, stop, step)``.
@@ -522,6 +585,10 @@ def open_source(path: PathLike, *, start: int = 0, stop: Optional[int] = None, s
         The input's frame rate (any real number from 0.01 to 1000: int, float, a numpy scalar),
         in place of what it states (image folders state none: videos written from them play at
         :data:`DEFAULT_FPS` otherwise). ``info.fps`` is this divided by ``step``.
+    stall_seconds : float, optional
+        A live source that gives no frame for this long (seconds, > 0) is taken as stalled:
+        the pass ends and :meth:`FrameSource.truncation` says so (default
+        :data:`bgsub.io.streams.DEFAULT_STALL_SECONDS`).
 
     Returns
     -------
@@ -541,19 +608,7 @@ def open_source(path: PathLike, *, start: int = 0, stop: Optional[int] = None, s
         # (OpenCV's video writers refuse rates near 0: 0.001 fails, 0.002 works.)
         raise InputError(f"the frame rate must be a number of frames per second from 0.01 to "
                          f"1000, not {fps!r}")
-    text = given_path(path, what="input", hint="a video file, an image folder or a glob pattern")
-    location = Path(text)
-    if location.is_dir():
-        backend = _folder_backend(location)
-    elif location.is_file():
-        backend = _VideoBackend(location)
-    elif glob.has_magic(text):
-        backend = _glob_backend(text)
-    elif location.exists():
-        raise InputError(f"{text}: not a video file, image folder or glob pattern (a device "
-                         "or other special file)")
-    else:
-        raise InputError(f"{text}: no such file or folder")
+    text, backend = _backend(path, start=start, stall_seconds=stall_seconds)
 
     total = backend.total
     if total is not None and start >= total:

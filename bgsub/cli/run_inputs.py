@@ -1,0 +1,95 @@
+"""Options of ``bgsub run`` about what goes in: how much of a live source (``--max-frames``,
+``--stall-timeout``), where to look (``--roi``), the camera motion when it is known
+(``--motion-in``) and the grbm model (``--model``). Each is checked before any frame is read."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any, Dict, Optional
+
+from bgsub.errors import InputError
+
+
+def add_options(parser: argparse.ArgumentParser) -> None:
+    from bgsub.io.streams import DEFAULT_STALL_SECONDS
+
+    parser.add_argument("--model", default=None, metavar="M",
+                        help="grbm's gated RBM: a shipped model name or an .npz path (as "
+                             "`bgsub flow --model`; the same as --param model=M)")
+    parser.add_argument("--roi", metavar="MASK.png", default=None,
+                        help="region of interest: white = watched, the frames' size or their "
+                             "aspect ratio (scaled with nearest neighbour); no foreground "
+                             "outside it, and moving-camera methods leave the motion there out "
+                             "of the camera fit (the same as --param roi=MASK.png)")
+    parser.add_argument("--motion-in", metavar="FILE.npy", default=None,
+                        help="use this camera motion instead of estimating it: (N, 3, 3), as "
+                             "--motion writes it (entry k maps frame k-1 to frame k, counted as "
+                             "the frames are read: give the same --start/--step); entries all "
+                             "NaN, and frames past its end, are estimated (moving-camera "
+                             "methods)")
+    group = next(g for g in parser._action_groups if g.title == "input frames")
+    group.add_argument("--max-frames", type=int, default=None, metavar="N",
+                       help="process at most N frames (with --start/--step/--stop; a camera "
+                            "or stream otherwise runs until it ends or Ctrl-C)")
+    group.add_argument("--stall-timeout", type=float, default=None, metavar="S",
+                       help="a camera or URL that gives no frame for S seconds is taken as "
+                            "stalled: the run stops there, outputs valid (default: "
+                            f"{DEFAULT_STALL_SECONDS:g})")
+
+
+def apply_max_frames(args: argparse.Namespace) -> None:
+    """Fold ``--max-frames`` into ``--stop`` (the frame range every input takes)."""
+    if args.max_frames is None:
+        return
+    if args.max_frames < 1:
+        raise InputError(f"--max-frames takes a number >= 1, not {args.max_frames}")
+    stop = args.start + args.max_frames * max(args.step, 1)
+    args.stop = stop if args.stop is None else min(args.stop, stop)
+
+
+def engine_params(args: argparse.Namespace, method: str, params: Dict[str, Any]) -> Dict[str, Any]:
+    """``params`` with ``--model``, ``--roi`` and ``--motion-in`` added as the engine
+    parameters they stand for (``model``, ``roi``, ``known_motion``); each refused for a method
+    without that parameter, or when ``--param`` gives it too."""
+    from bgsub.engines import get_engine_spec
+
+    spec = get_engine_spec(method)
+    params = dict(params)
+    for flag, name, value in (("--model", "model", args.model), ("--roi", "roi", args.roi),
+                              ("--motion-in", "known_motion", args.motion_in)):
+        if value is None:
+            continue
+        if name not in spec.params:
+            raise InputError(f"{flag}: method {method!r} has no {name} (use a moving-camera "
+                             "method such as grbm)" if flag != "--model" else
+                             f"--model: method {method!r} takes no model (grbm does)")
+        if name in params:
+            raise InputError(f"{flag} and --param {name}= (or --config) both set it; give one")
+        params[name] = spec.params[name].parse(name, value)
+    return params
+
+
+def check_inputs(params: Dict[str, Any], *, width: int, height: int) -> Dict[str, Any]:
+    """``params`` with the region of interest and the known camera motion read now (the region
+    also scaled to ``width`` x ``height`` frames), so a bad file stops the run before any frame
+    is processed."""
+    from bgsub.engines.parts import KnownMotion
+    from bgsub.engines.roi import RegionOfInterest
+
+    params = dict(params)
+    if params.get("roi"):
+        region = RegionOfInterest.from_value(params["roi"])
+        region.at((height, width))
+        params["roi"] = region
+    if params.get("known_motion"):
+        params["known_motion"] = KnownMotion.from_value(params["known_motion"])
+    return params
+
+
+def motion_note(engine: Any) -> Optional[str]:
+    """A line when ``--motion-in`` ended before the input: the frames after were estimated."""
+    known = getattr(engine, "known_motion", None)
+    if known is None or not known.frames_past_end:
+        return None
+    return (f"{known.name} holds the camera motion of {len(known.matrices)} frames; the "
+            f"{known.frames_past_end} after them were estimated")

@@ -59,7 +59,6 @@ class FusionConfig:
     close: int = setting(9, "morphological closing size (0 or 1 = none)", low=0, high=99)
     fill_holes: int = setting(5000, "holes enclosed by a foreground blob, up to this many "
                                     "working-size pixels, are filled (0 = none)", low=0)
-    slow_dilate: int = setting(0, "EXPERIMENT dilate the slow-learning mask", low=0, high=99)
     heal_below: float = setting(0.25, "background differences where the local motion agrees "
                                       "with the camera (violation below this) are learnt at "
                                       "the normal rate (ghost healing)", low=0)
@@ -123,9 +122,6 @@ class Fusion:
         slow = mask > 0
         if violation is not None:
             slow &= ~(violation < self.config.heal_below)
-        c = self.config
-        if c.slow_dilate > 1:
-            slow = cv2.dilate(slow.view(np.uint8), _kernel(cv2.MORPH_ELLIPSE, c.slow_dilate)) > 0
         return slow
 
 

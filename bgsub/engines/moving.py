@@ -59,6 +59,25 @@ def work_size(width: int, height: int, work_width: int) -> tuple:
     return max(1, int(round(width * scale))), max(1, int(round(height * scale)))
 
 
+def _to_work(image: np.ndarray, work_width: int) -> np.ndarray:
+    """``image`` resized to its :func:`work_size` (itself when that is its size)."""
+    h, w = image.shape[:2]
+    ww, wh = work_size(w, h, work_width)
+    if (ww, wh) == (w, h):
+        return image
+    return cv2.resize(image, (ww, wh), interpolation=cv2.INTER_AREA)
+
+
+def _to_input(img: np.ndarray, in_shape: tuple, *, binary: bool = False) -> np.ndarray:
+    """``img`` (working size) resized to the input's ``in_shape``; a ``binary`` mask stays
+    0/255."""
+    h, w = in_shape[:2]
+    if img.shape[:2] == (h, w):
+        return img
+    up = cv2.resize(img, (w, h), interpolation=cv2.INTER_LINEAR)
+    return np.where(up > 127, 255, 0).astype(np.uint8) if binary else up
+
+
 class MovingCameraEngine(Engine):
     """A background subtractor for a moving camera, built on the motion front end ``frontend``.
 
@@ -133,7 +152,7 @@ class MovingCameraEngine(Engine):
         if self.known_motion is not None:
             self.known_motion.next_frame()
         with limited_threads(self.config.threads):
-            work = self._to_work(image)
+            work = _to_work(image, self.config.work_width)
             if work is image:
                 # The model keeps the frame past this call (the previous frame of the next pair,
                 # the deferred update): not the caller's buffer, which a reading loop may reuse.
@@ -141,7 +160,7 @@ class MovingCameraEngine(Engine):
             gray = work if work.ndim == 2 else cv2.cvtColor(work, cv2.COLOR_BGR2GRAY)
             mask = self._step(work, gray, rate)
         self._last_frame, self._last_mask = work, mask
-        out = self._to_input(mask)
+        out = _to_input(mask, self._in_shape, binary=True)
         if fgmask is not None:
             fgmask[...] = out
             return fgmask
@@ -282,28 +301,6 @@ class MovingCameraEngine(Engine):
         self._prev_motion = None
         self.hold_back.reset()
 
-    # ------------------------------------------------------------------ sizes
-
-    def _to_work(self, image: np.ndarray) -> np.ndarray:
-        h, w = image.shape[:2]
-        ww, wh = work_size(w, h, self.config.work_width)
-        if (ww, wh) == (w, h):
-            return image
-        return cv2.resize(image, (ww, wh), interpolation=cv2.INTER_AREA)
-
-    def _to_input(self, mask: np.ndarray) -> np.ndarray:
-        h, w = self._in_shape[:2]
-        if mask.shape == (h, w):
-            return mask
-        up = cv2.resize(mask, (w, h), interpolation=cv2.INTER_LINEAR)
-        return np.where(up > 127, 255, 0).astype(np.uint8)
-
-    def _to_input_image(self, img: np.ndarray) -> np.ndarray:
-        h, w = self._in_shape[:2]
-        if img.shape[:2] == (h, w):
-            return img
-        return cv2.resize(img, (w, h), interpolation=cv2.INTER_LINEAR)
-
     # ------------------------------------------------------------------ what the engine saw
 
     @property
@@ -347,7 +344,7 @@ class MovingCameraEngine(Engine):
         img = model.background_image()
         if img is None or self._in_shape is None:
             return img
-        return self._to_input_image(img)
+        return _to_input(img, self._in_shape)
 
     def debug_image(self) -> Optional[np.ndarray]:
         """The last frame (working size, scaled to the input) with the motion vectors drawn:
@@ -360,8 +357,8 @@ class MovingCameraEngine(Engine):
         res = self._last
         colour = None if res is NO_MOTION else self.frontend.flow_colour(
             self._last_frame.shape[:2])
-        canvas = self._to_input_image(
-            draw_debug(self._last_frame, self._last_mask, res, colour, self.last_status))
+        canvas = _to_input(draw_debug(self._last_frame, self._last_mask, res, colour,
+                                      self.last_status), self._in_shape)
         scale = self.frontend.colour_scale()
         if colour is None or scale is None:
             return canvas

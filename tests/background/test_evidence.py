@@ -134,3 +134,26 @@ def test_the_residual_field_is_zero_where_no_vector_reports():
 def test_frames_of_another_type_or_shape_are_refused(prev, cur):
     with pytest.raises(InputError, match="motion_evidence_map"):
         motion_evidence_map(prev, cur, np.eye(3))
+
+
+def test_the_fusion_takes_the_larger_of_the_vectors_and_the_frames_evidence():
+    from bgsub.background.fusion import Fusion, FusionConfig
+
+    bg, obj = random_texture(H, W, seed=4), random_texture(32, 32, seed=5)[:32, :32]
+    prev, cur = bg[:H, :W].copy(), shifted(bg, -3, 0, H, W)
+    prev[30:62, 20:52] = obj
+    cur[30:62, 20:52] = obj  # followed by the camera: only the frames tell
+    cam = _translation(-3.0, 0.0)
+    pts, disp, w = _grid_vectors((-3.0, 0.0))
+    right = pts[:, 0] > 96
+    disp[right] = (3.0, 0.0)  # the vectors see a mover on the right, the frames do not agree
+    w[(pts[:, 0] > 12) & (pts[:, 0] < 60)] = 0  # and nothing over the followed object
+    fusion = Fusion(FusionConfig(violation_noise=0.0))
+    both = fusion.violation(pts, disp, w, cam, prev, cur)
+    vectors = flow_violation_map(pts, disp, cam, weights=w, shape=(H, W), threshold=1.5)
+    frames = motion_evidence_map(prev, cur, cam,
+                                 residual=residual_field(pts, disp, w, cam, (H, W)))
+    np.testing.assert_allclose(both, np.maximum(vectors, frames), atol=1e-6)
+    assert both[36:56, 26:46].mean() > 0.7 and both[:, 110:].mean() > 0.9
+    off = Fusion(FusionConfig(violation_noise=0.0, image_cue=0.0))
+    np.testing.assert_allclose(off.violation(pts, disp, w, cam, prev, cur), vectors, atol=1e-6)

@@ -21,6 +21,7 @@ from typing import Optional
 import cv2
 import numpy as np
 
+from bgsub.background.compensated import warp_image
 from bgsub.errors import InputError
 from bgsub.motion.global_motion import apply_homography
 
@@ -100,13 +101,17 @@ def motion_evidence_map(prev: np.ndarray, cur: np.ndarray, matrix: np.ndarray, *
     """
     _check_frames(prev, cur)
     h, w = cur.shape[:2]
-    map_x, map_y = _camera_maps(matrix, h, w)
     k = (int(window), int(window))
-    r_cam = _residual(cur, prev, map_x, map_y, k)
+    moved = warp_image(prev, matrix, (w, h), cv2.INTER_LINEAR, cv2.BORDER_REPLICATE)
+    r_cam = _mean_absdiff(cur, moved, k)
     r_alt = _mean_absdiff(cur, prev, k)
     if residual is not None:
-        local = _residual(cur, prev, map_x - residual[:, :, 0], map_y - residual[:, :, 1], k)
-        np.minimum(r_alt, local, out=r_alt)
+        # The camera-moved frame moved on by the residual: the local vectors' motion (exact for
+        # a translation, and to first order for the small rotations and zooms between frames).
+        grid_x, grid_y = _pixel_grid(h, w)
+        local = cv2.remap(moved, grid_x - residual[:, :, 0], grid_y - residual[:, :, 1],
+                          cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        np.minimum(r_alt, _mean_absdiff(cur, local, k), out=r_alt)
     s = (r_cam - r_alt) / (r_cam + r_alt + np.float32(noise))
     s -= np.float32(start)
     s *= np.float32(1.0 / span)
@@ -124,28 +129,23 @@ def _check_frames(prev: np.ndarray, cur: np.ndarray) -> None:
                          f"{cur.shape}")
 
 
-def _camera_maps(matrix: np.ndarray, h: int, w: int) -> tuple:
-    """``(map_x, map_y)`` (H, W) float32: where each current pixel was in the previous frame
-    under the camera's motion."""
-    inv = np.linalg.inv(np.asarray(matrix, np.float64))
-    xs = np.arange(w, dtype=np.float64)
-    ys = np.arange(h, dtype=np.float64)[:, None]
-    den = inv[2, 0] * xs + inv[2, 1] * ys + inv[2, 2]
-    map_x = ((inv[0, 0] * xs + inv[0, 1] * ys + inv[0, 2]) / den).astype(np.float32)
-    map_y = ((inv[1, 0] * xs + inv[1, 1] * ys + inv[1, 2]) / den).astype(np.float32)
-    return map_x, map_y
+_GRIDS: dict = {}
 
 
-def _residual(cur: np.ndarray, prev: np.ndarray, map_x: np.ndarray, map_y: np.ndarray,
-              k: tuple) -> np.ndarray:
-    moved = cv2.remap(prev, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    return _mean_absdiff(cur, moved, k)
+def _pixel_grid(h: int, w: int) -> tuple:
+    """``(x, y)`` (H, W) float32 pixel coordinates, cached per size."""
+    if (h, w) not in _GRIDS:
+        _GRIDS.clear()
+        xs, ys = np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32))
+        _GRIDS[(h, w)] = (xs, ys)
+    return _GRIDS[(h, w)]
 
 
 def _mean_absdiff(a: np.ndarray, b: np.ndarray, k: tuple) -> np.ndarray:
-    """(H, W) float32: |a - b| (summed over channels, scaled to one channel's range) averaged
-    over ``k``."""
+    """(H, W) float32: |a - b| averaged over ``k``; for colour frames the channels' absolute
+    differences are summed with the gray-level weights (so a change of hue at one gray level
+    still counts: no channel's difference can cancel another's)."""
     diff = cv2.absdiff(a, b)
     if diff.ndim == 3:
-        diff = cv2.transform(diff, np.full((1, diff.shape[2]), 1.0 / diff.shape[2]))
+        diff = cv2.cvtColor(diff, cv2.COLOR_BGR2GRAY)
     return cv2.blur(diff.astype(np.float32), k)

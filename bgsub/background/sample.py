@@ -54,13 +54,16 @@ class SampleBackground:
         (ViBe's one-frame start), the first being the pixel itself."""
         f = self._planes(frame)
         c, h, w = f.shape
-        pad = np.pad(f, ((0, 0), (1, 1), (1, 1)), mode="edge")
-        ys, xs = np.mgrid[0:h, 0:w]
+        pad = np.pad(f, ((0, 0), (1, 1), (1, 1)), mode="edge").reshape(c, -1)
+        # Flat indices into the padded planes: one gather per sample, not a 2-D fancy index.
+        ys, xs = np.mgrid[1:h + 1, 1:w + 1]
+        centre = ys * (w + 2) + xs
         s = np.empty((self.n, c, h, w), np.uint8)
         s[0] = f
         for k in range(1, self.n):
-            s[k] = pad[:, ys + 1 + self.rng.integers(-1, 2, (h, w)),
-                       xs + 1 + self.rng.integers(-1, 2, (h, w))]
+            dy = self.rng.integers(-1, 2, (h, w))
+            dx = self.rng.integers(-1, 2, (h, w))
+            np.take(pad, centre + dy * (w + 2) + dx, axis=1, out=s[k])
         self.s = s
 
     def score(self, frame: np.ndarray) -> np.ndarray:

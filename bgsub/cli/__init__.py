@@ -32,18 +32,18 @@ from typing import Dict, Iterator, List, NoReturn, Optional
 
 from bgsub.errors import BgsubError
 
-# Sub-command modules, in the order `bgsub --help` lists them.
-_COMMANDS = (
-    "run",
-    "methods",
-    "evaluate",
-    "compare",
-    "samples",
-    "train",
-    "flow",
-    "analogy",
-    "bench",
-)
+# Sub-commands and their modules, in the order `bgsub --help` lists them.
+_COMMANDS = {
+    "run": "run",
+    "methods": "methods",
+    "eval": "evaluate",
+    "compare": "compare",
+    "samples": "samples",
+    "train": "train",
+    "flow": "flow",
+    "analogy": "analogy",
+    "bench": "bench",
+}
 
 _EPILOG = """\
 examples:
@@ -66,7 +66,9 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"bgsub: error: {message} (see `{self.prog} --help`)\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: Optional[str] = None) -> argparse.ArgumentParser:
+    """The ``bgsub`` parser with every sub-command, or only ``command``'s when it names one:
+    a command imports only what it needs (a short run's start-up is mostly imports)."""
     parser = _Parser(
         prog="bgsub",
         description=(
@@ -80,9 +82,15 @@ def build_parser() -> argparse.ArgumentParser:
 
     parser.add_argument("--version", action="version", version=f"bgsub {__version__}")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for name in _COMMANDS:
-        importlib.import_module(f"bgsub.cli.{name}").register(subparsers)
+    names = [command] if command in _COMMANDS else list(_COMMANDS)
+    for name in names:
+        importlib.import_module(f"bgsub.cli.{_COMMANDS[name]}").register(subparsers)
     return parser
+
+
+def _command_word(argv: List[str]) -> Optional[str]:
+    """The first word of ``argv`` that is not an option (the sub-command, if it names one)."""
+    return next((token for token in argv if not token.startswith("-")), None)
 
 
 def _command_parser(parser: argparse.ArgumentParser,
@@ -218,15 +226,17 @@ def _dependency_error() -> Optional[str]:
 
 
 def _main(argv: Optional[List[str]]) -> int:
+    argv_list = sys.argv[1:] if argv is None else list(argv)
     try:
-        parser = build_parser()  # imports every sub-command, and so numpy and OpenCV
+        # Imports the sub-command (every one for `bgsub --help`), and so numpy and OpenCV.
+        parser = build_parser(_command_word(argv_list))
     except ImportError:
         message = _dependency_error()
         if message is None:
             raise
         print(f"bgsub: error: {message}", file=sys.stderr)
         return 1
-    _check_leading_options(parser, sys.argv[1:] if argv is None else list(argv))
+    _check_leading_options(parser, argv_list)
     args, extra = parser.parse_known_args(argv)
     if extra:  # named by the command's parser, whose --help lists what it takes
         _command_parser(parser, args).error(f"unrecognized arguments: {' '.join(extra)}")

@@ -7,8 +7,6 @@ import sys
 from pathlib import Path
 from typing import Any, Iterable, List, Optional, Tuple
 
-from tqdm import tqdm
-
 from bgsub.errors import OutputError
 
 
@@ -71,6 +69,8 @@ def describe_codec(path: Any, codec: str) -> str:
 def progress(iterable: Iterable[Any], *, total: Optional[int] = None, desc: str = "",
              quiet: bool = False, unit: str = "frame") -> Iterable[Any]:
     """Wrap ``iterable`` in a tqdm bar on stderr, off when ``quiet`` or stderr is no terminal."""
+    from tqdm import tqdm  # here: importing it costs a command that shows no bar
+
     return tqdm(iterable, total=total, desc=desc, unit=unit, file=sys.stderr,
                 disable=quiet or not sys.stderr.isatty(), dynamic_ncols=True, leave=False)
 

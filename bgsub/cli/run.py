@@ -15,7 +15,6 @@ from typing import Any, List, Optional
 from bgsub import engines
 from bgsub.cli import batch, common, run_extras, run_inputs
 from bgsub.errors import InputError
-from bgsub.evaluation.cdnet import VideoFrames
 from bgsub.io.loop import FrameLoop, RunStats
 from bgsub.io.sinks import (
     MotionSink,
@@ -187,6 +186,8 @@ def _eval_notice(args: argparse.Namespace, renumbered: bool) -> Optional[str]:
     """
     if not is_video_path(args.output) or (args.start, args.step) == (0, 1) or renumbered:
         return None
+    from bgsub.evaluation.cdnet import VideoFrames  # the scoring code, only for this notice
+
     flags = VideoFrames(args.start, args.step, args.stop).flags()
     return (f"{args.output} holds no frame numbers: score it with `bgsub eval "
             f"{shlex.quote(str(args.output))} GROUNDTRUTH {flags}`")

@@ -98,17 +98,20 @@ class ProgressBar(Consumer):
 
     def __init__(self, *, total: Optional[int] = None, desc: str = "",
                  enabled: bool = True) -> None:
-        from tqdm import tqdm
+        self._bar: Any = None
+        if enabled and sys.stderr.isatty():
+            from tqdm import tqdm  # only for a bar shown: importing it is a short run's cost
 
-        self._bar = tqdm(total=total, desc=desc, unit="frame", file=sys.stderr,
-                         disable=not enabled or not sys.stderr.isatty(), dynamic_ncols=True,
-                         leave=False)
+            self._bar = tqdm(total=total, desc=desc, unit="frame", file=sys.stderr,
+                             dynamic_ncols=True, leave=False)
 
     def add(self, result: FrameResult) -> None:
-        self._bar.update(1)
+        if self._bar is not None:
+            self._bar.update(1)
 
     def close(self, *, complete: bool, error: Optional[BaseException]) -> None:
-        self._bar.close()
+        if self._bar is not None:
+            self._bar.close()
 
 
 class FrameCallback(Consumer):

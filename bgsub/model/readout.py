@@ -337,11 +337,24 @@ def _centred_filters(model: GatedRBM, side: str) -> np.ndarray:
     return model._cache[key]
 
 
+def _half_hidden_weights(model: GatedRBM) -> Tuple[np.ndarray, np.ndarray]:
+    """``(whf / 2, bh / 2)``, float32, cached. Halving is exact in floating point and commutes
+    with every rounding of the matmul, the contrast scale and the bias, so the hidden units'
+    ``a / 2`` comes out of them bit for bit as halving ``a`` afterwards would give it, without
+    that extra pass over ``(N, K)``."""
+    key = ("half-hidden",)
+    if key not in model._cache:
+        model._cache[key] = (np.ascontiguousarray(model.whf * np.float32(0.5)),
+                             (model.bh * np.float32(0.5)).astype(np.float32))
+    return model._cache[key]
+
+
 def precompute(model: GatedRBM, *, max_disp: int) -> None:
     """Compute the per-model constants :func:`raw_patch_motion` needs (folded displacement
     filters, centred filters) now rather than on the first frame. They are cached on the model
     and reused until :meth:`GatedRBM.invalidate`."""
     _hidden_displacement_filters(model, max_disp)
+    _half_hidden_weights(model)
     if model.normalization == "contrast":
         _centred_filters(model, "x")
         _centred_filters(model, "y")
@@ -381,7 +394,8 @@ def raw_patch_motion(
     fy = patch_features(model, y_raw, side="y")
     # Factor products in place in fy's projections (fy is ours; fx may be a caller's cache).
     f = np.multiply(fy.proj, fx.proj, out=fy.proj)
-    a = f @ model.whf.T
+    half_whf, half_bh = _half_hidden_weights(model)
+    a = f @ half_whf.T  # a / 2 of sigmoid(a) = (1 + tanh(a / 2)) / 2, exactly (see there)
     if model.normalization == "contrast":
         rms = np.sqrt(0.5 * (fx.energy + fy.energy))
         flat = rms < model.contrast_floor
@@ -391,9 +405,8 @@ def raw_patch_motion(
         a *= (1.0 / (scale * scale)).astype(np.float32)[:, None]
     else:
         flat = fx.const | fy.const
-    a += model.bh
+    a += half_bh
     # sigmoid(a) = (1 + tanh(a / 2)) / 2: fewer passes than 1 / (1 + exp(-a)), no overflow.
-    a *= np.float32(0.5)
     h = np.tanh(a, out=a)
     h *= np.float32(0.5)
     h += np.float32(0.5)

@@ -114,7 +114,11 @@ class GrbmFrontEnd(MotionFrontEnd):
 
     def prepare(self, data: FramePyramid) -> None:
         if not hasattr(self.model, "patch_motion"):
-            prepare_first_frame(data, self._flow_config(self.flow.levels, self.flow.finest),
+            # With prior_levels, the next pair is normally read from the previous motion on
+            # the reduced pyramid: prepare that; a read without a prior (or a retry) cuts the
+            # other levels when it needs them.
+            levels = self.flow.levels or self.config.prior_levels
+            prepare_first_frame(data, self._flow_config(levels, self.flow.finest),
                                 model=self.model)
 
     def check_size(self, gray: np.ndarray) -> None:

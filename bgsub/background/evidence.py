@@ -25,7 +25,7 @@ from bgsub.background.compensated import warp_image
 from bgsub.errors import InputError
 from bgsub.motion.global_motion import apply_homography
 
-__all__ = ["motion_evidence_map", "residual_field"]
+__all__ = ["motion_evidence_map", "residual_field", "cell_index", "cells_to_pixels"]
 
 
 def residual_field(points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
@@ -51,7 +51,6 @@ def residual_field(points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
     vector reports).
     """
     h, w = int(shape[0]), int(shape[1])
-    gw, gh = (w + cell - 1) // cell, (h + cell - 1) // cell
     pts = np.asarray(points, np.float64).reshape(-1, 2)
     wt = np.asarray(weights, np.float64).reshape(-1)
     res = pts + np.asarray(disp, np.float64).reshape(-1, 2) - apply_homography(matrix, pts)
@@ -59,17 +58,31 @@ def residual_field(points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
     if not ok.any():
         return np.zeros((h, w, 2), np.float32)
     cur = pts[ok] + np.asarray(disp, np.float64).reshape(-1, 2)[ok]
-    gx = np.clip((cur[:, 0] // cell).astype(np.intp), 0, gw - 1)
-    gy = np.clip((cur[:, 1] // cell).astype(np.intp), 0, gh - 1)
-    cells = gy * gw + gx
+    cells, (gh, gw) = cell_index(cur, shape, cell)
     den = np.bincount(cells, wt[ok], minlength=gh * gw)
     grid = np.zeros((gh * gw, 2), np.float32)
     for axis in (0, 1):
         num = np.bincount(cells, wt[ok] * res[ok, axis], minlength=gh * gw)
         grid[:, axis] = np.where(den > 0, num / np.maximum(den, 1e-12), 0.0)
-    up = cv2.resize(grid.reshape(gh, gw, 2), (gw * cell, gh * cell),
-                    interpolation=cv2.INTER_LINEAR)
-    return np.ascontiguousarray(up[:h, :w])
+    return cells_to_pixels(grid.reshape(gh, gw, 2), shape, cell)
+
+
+def cell_index(positions: np.ndarray, shape: tuple, cell: int) -> tuple:
+    """``(cells, (gh, gw))``: the flat index of the ``cell`` x ``cell`` cell of an ``(H, W)``
+    frame that holds each of the ``(N, 2)`` ``positions`` (clipped to the frame's cells), and
+    the cell grid's size."""
+    h, w = int(shape[0]), int(shape[1])
+    gw, gh = (w + cell - 1) // cell, (h + cell - 1) // cell
+    gx = np.clip((positions[:, 0] // cell).astype(np.intp), 0, gw - 1)
+    gy = np.clip((positions[:, 1] // cell).astype(np.intp), 0, gh - 1)
+    return gy * gw + gx, (gh, gw)
+
+
+def cells_to_pixels(grid: np.ndarray, shape: tuple, cell: int) -> np.ndarray:
+    """A ``(gh, gw[, C])`` float32 cell grid interpolated (bilinearly) to the ``(H, W)`` frame."""
+    gh, gw = grid.shape[:2]
+    up = cv2.resize(grid, (gw * cell, gh * cell), interpolation=cv2.INTER_LINEAR)
+    return np.ascontiguousarray(up[:int(shape[0]), :int(shape[1])])
 
 
 def motion_evidence_map(prev: np.ndarray, cur: np.ndarray, matrix: np.ndarray, *,

@@ -25,7 +25,8 @@ from typing import Optional
 import cv2
 import numpy as np
 
-from bgsub.background.evidence import motion_evidence_map, residual_field
+from bgsub.background.evidence import (cell_index, cells_to_pixels, motion_evidence_map,
+                                       residual_field)
 from bgsub.errors import InputError
 from bgsub.motion.global_motion import apply_homography
 from bgsub.settings import check_settings, setting
@@ -192,13 +193,9 @@ def flow_violation_map(
     ok = (wt > 0) & np.isfinite(err)
     if noise_scale > 0 and ok.any():
         threshold = max(threshold, noise_scale * 1.4826 * float(np.median(err[ok])))
-    cur = pts + d
-    gw, gh = (w + cell - 1) // cell, (h + cell - 1) // cell
-    gx = np.clip((cur[:, 0] // cell).astype(np.intp), 0, gw - 1)
-    gy = np.clip((cur[:, 1] // cell).astype(np.intp), 0, gh - 1)
+    cells, (gh, gw) = cell_index((pts + d)[ok], (h, w), cell)
     # Soft step; the clip keeps exp() finite for wild vectors (err of thousands of px).
     viol = 1.0 / (1.0 + np.exp(-np.clip((err - threshold) / 0.25, -60.0, 60.0)))
-    cells = gy[ok] * gw + gx[ok]
     num = np.bincount(cells, (wt * viol)[ok], minlength=gh * gw).reshape(gh, gw).astype(np.float32)
     den = np.bincount(cells, wt[ok], minlength=gh * gw).reshape(gh, gw).astype(np.float32)
     if radius > 0:
@@ -206,8 +203,7 @@ def flow_violation_map(
         num = cv2.boxFilter(num, -1, k, normalize=False, borderType=cv2.BORDER_CONSTANT)
         den = cv2.boxFilter(den, -1, k, normalize=False, borderType=cv2.BORDER_CONSTANT)
     frac = np.where(den > 1e-6, num / np.maximum(den, 1e-6), 0.5).astype(np.float32)
-    up = cv2.resize(frac, (gw * cell, gh * cell), interpolation=cv2.INTER_LINEAR)
-    return np.ascontiguousarray(up[:h, :w])
+    return cells_to_pixels(frac, (h, w), cell)
 
 
 def clean_mask(mask: np.ndarray, *, min_area: int = 30, close: int = 5,

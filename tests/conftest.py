@@ -173,29 +173,24 @@ def write_input_sequence(folder, *, n_frames=8, side=10, speed=4, seed=0, tempor
 def write_box_clip(path, *, seed=0, n=12, width=64, height=48):
     """A small lossless FFV1 video (``n`` frames, ``(height, width, 3)``) of a bright box moving
     3 px a frame to the right over dark noise; returns ``path``."""
-    import cv2
-
-    rng = np.random.default_rng(seed)
-    writer = cv2.VideoWriter(str(path), cv2.CAP_FFMPEG, cv2.VideoWriter_fourcc(*"FFV1"), 25.0,
-                             (width, height), True)
-    for k in range(n):
-        frame = rng.integers(0, 40, (height, width, 3), dtype=np.uint8)
-        frame[15:30, 3 * k:3 * k + 12] = 230
-        writer.write(frame)
-    writer.release()
-    return path
+    return _write_box_video(path, "FFV1", speed=3, seed=seed, n=n, width=width, height=height)
 
 
 def write_mp4_clip(path, *, seed=0, n=20, width=64, height=48):
-    """A small MPEG-4 ``.mp4`` of ``write_box_clip``'s scene (lossy); returns ``path``."""
+    """A small MPEG-4 ``.mp4`` of ``write_box_clip``'s scene (lossy, the box moving 2 px a
+    frame); returns ``path``."""
+    return _write_box_video(path, "mp4v", speed=2, seed=seed, n=n, width=width, height=height)
+
+
+def _write_box_video(path, fourcc, *, speed, seed, n, width, height):
     import cv2
 
     rng = np.random.default_rng(seed)
-    writer = cv2.VideoWriter(str(path), cv2.CAP_FFMPEG, cv2.VideoWriter_fourcc(*"mp4v"), 25.0,
+    writer = cv2.VideoWriter(str(path), cv2.CAP_FFMPEG, cv2.VideoWriter_fourcc(*fourcc), 25.0,
                              (width, height), True)
     for k in range(n):
         frame = rng.integers(0, 40, (height, width, 3), dtype=np.uint8)
-        frame[15:30, 2 * k:2 * k + 12] = 230
+        frame[15:30, speed * k:speed * k + 12] = 230
         writer.write(frame)
     writer.release()
     return path

@@ -262,6 +262,19 @@ class CompensatedBackground:
         self.age += np.float32(1.0)
         np.minimum(self.age, np.float32(p.max_age), out=self.age)
 
+    def sensitive(self, *, within: float) -> np.ndarray:
+        """``(H, W) bool``: pixels whose decision threshold (``k_sigma`` standard deviations, at
+        least ``min_diff``, in every channel) is at most ``within`` gray levels, all False
+        before the first frame. Where the spread is wider (water, flicker) the model is blind
+        to what differs by less."""
+        if self.var is None:
+            return np.zeros((0, 0), bool)
+        p = self.config
+        if max(p.min_diff, p.k_sigma * p.min_std) > within:
+            return np.zeros(self.var.shape[:2], bool)
+        widest = self.var.max(axis=2) if self.var.shape[2] > 1 else self.var[:, :, 0]
+        return widest * np.float32(p.k_sigma * p.k_sigma) <= np.float32(within * within)
+
     def background_image(self) -> Optional[np.ndarray]:
         """The mean as uint8 ((H, W, 3) or (H, W)), or None before the first frame."""
         if self.mean is None:

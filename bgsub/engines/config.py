@@ -81,8 +81,13 @@ class EngineConfig:
                                        "foreground ... (0 = off)", low=0, high=1)
     still_snr: float = setting(4.0, "... and the fitted camera motion is less than this many "
                                     "times the scatter of the motion vectors about it (no "
-                                    "rigid motion stands out)", low=0)
-    still_window: int = setting(9, "... both as medians over this many frames", low=1)
+                                    "rigid motion stands out) ...", low=0)
+    still_versus: float = setting(4.0, "... and, where the compensated model is not blind, "
+                                       "at most this many times the fraction it calls, plus "
+                                       "0.5 % (a slow pan drifts the never-warped model's fine "
+                                       "texture into false foreground; 0 = no comparison) ...",
+                                  low=0)
+    still_window: int = setting(9, "... all as medians over this many frames", low=1)
     learning_rate: float = setting(LEARNING_RATE.default, LEARNING_RATE.help,
                                    high=LEARNING_RATE.high)
 

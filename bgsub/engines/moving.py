@@ -122,7 +122,8 @@ class MovingCameraEngine(Engine):
         self.registration = FrozenModelRegistration(cam.motion_model)
         self.scene_cut = SceneCut(c.scene_cut, c.cut_support)
         self.still_switch = (StillCameraSwitch(still_model=c.still_model, still_snr=c.still_snr,
-                                               window=c.still_window)
+                                               window=c.still_window,
+                                               still_versus=c.still_versus)
                              if c.still_model > 0 else None)
         self.thread = SecondThread(overlap=c.overlap, name=self.name)
         self.known_motion = known_motion
@@ -206,7 +207,8 @@ class MovingCameraEngine(Engine):
             return empty
         self._last_matrix = applied
         if self.still_switch is not None:
-            still_score = self.still_switch.judge(work, result)
+            still_score = self.still_switch.judge(work, result, compensated=self.bg,
+                                                 compensated_score=score)
             score = score if still_score is None else still_score
         mask = self.fusion.mask(score, violation)
         self._pending = (work, self.fusion.learn_slowly(mask, violation), rate)

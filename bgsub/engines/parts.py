@@ -284,20 +284,44 @@ def motion_snr(result: MotionResult, *, min_vectors: int = 8) -> float:
     return float(np.median(np.linalg.norm(predicted, axis=1))) / max(scatter, 1e-3)
 
 
+#: The fraction of the compared pixels the sample model may call foreground beyond
+#: ``still_versus`` times the compensated model's (:class:`StillCameraSwitch`).
+SAMPLE_SLACK = 0.005
+#: Gray levels: where the compensated model's decision threshold is wider (a spread of 30 at
+#: k_sigma 2; water, flicker), it is blind rather than right, and the still-camera switch does
+#: not compare the two models there.
+BLIND_BEYOND = 60.0
+
+
 class StillCameraSwitch:
     """A :class:`SampleBackground` that is never warped runs beside the compensated model; the
     camera is taken as still (:attr:`camera_still`), and that model's score used, while over
-    the last ``window`` frames (medians) it calls less than ``still_model`` of the frame
-    foreground and the fitted motion is less than ``still_snr`` times the robust scatter of the
-    motion vectors about it (:func:`motion_snr`). Both are needed: a pan makes the sample model
-    fail, and a shaking camera's motion is rigid however small."""
+    the last ``window`` frames (medians):
 
-    def __init__(self, *, still_model: float, still_snr: float, window: int) -> None:
+    * the fitted motion is less than ``still_snr`` times the robust scatter of the motion
+      vectors about it (:func:`motion_snr`): a shaking camera's motion is rigid however small;
+    * the sample model calls less than ``still_model`` of the frame foreground: a pan makes it
+      fail;
+    * of the pixels where the compensated model is not blind (its threshold within
+      ``BLIND_BEYOND`` gray levels), the sample model calls at most ``still_versus`` times the
+      fraction the compensated model calls, plus ``SAMPLE_SLACK`` (a young compensated model
+      calls nothing). A slow pan (half a pixel a frame) hides in the vectors' scatter, and over
+      sparse fine texture (a star field) its drift makes the sample model call a small
+      fraction of the frame that is still many times the compensated model's. Where the
+      compensated model's spread is wide (water, flicker) it is blind rather than right, and
+      the comparison does not look.
+    """
+
+    def __init__(self, *, still_model: float, still_snr: float, window: int,
+                 still_versus: float = 0.0) -> None:
         self.still_model = float(still_model)
         self.still_snr = float(still_snr)
+        self.still_versus = float(still_versus)
         self.window = max(int(window), 1)
         self.model = SampleBackground()
-        # (fraction the sample model calls foreground, motion_snr) of the last frames.
+        # (fraction the sample model calls foreground, motion_snr, how far it calls more than
+        # still_versus times the compensated model where that one is not blind) of the last
+        # frames.
         self._votes: collections.deque = collections.deque(maxlen=self.window)
         self.camera_still = False
 
@@ -311,23 +335,43 @@ class StillCameraSwitch:
         """Learn ``frame`` (:meth:`SampleBackground.update`'s conventions)."""
         self.model.update(frame, learn_slowly, rate)
 
-    def judge(self, frame: np.ndarray, result: MotionResult) -> Optional[np.ndarray]:
+    def judge(self, frame: np.ndarray, result: MotionResult, *,
+              compensated: Optional[CompensatedBackground] = None,
+              compensated_score: Optional[np.ndarray] = None) -> Optional[np.ndarray]:
         """Whether the camera is taken as still for ``frame`` (working size) with motion
-        ``result``: the sample model's ``(h, w) float32`` score of it if so, else None."""
+        ``result``: the sample model's ``(h, w) float32`` score of it if so, else None.
+        ``compensated`` and ``compensated_score`` are the compensated model, warped to the
+        frame, and its ``(h, w)`` score of it (None: no comparison with it)."""
         snr = motion_snr(result)
         snrs = [v[1] for v in self._votes] + [snr]
         if np.median(snrs[-self.window:]) >= self.still_snr:
             # A rigid motion: the camera moves whatever the sample model says. Not scoring it
             # saves ~1 ms a frame; the frame counts as one the sample model does not explain.
-            self._votes.append((1.0, snr))
+            self._votes.append((1.0, snr, 1.0))
             self.camera_still = False
             return None
         score = self.model.score(frame)
-        fraction = float(np.count_nonzero(score > 1.0)) / score.size
-        self._votes.append((fraction, snr))
-        fractions = np.median([v[0] for v in self._votes])
-        self.camera_still = bool(fractions < self.still_model)
+        fraction = _foreground_fraction(score)
+        excess = -np.inf
+        if compensated is not None and compensated_score is not None and self.still_versus > 0:
+            both = compensated.sensitive(within=BLIND_BEYOND)
+            if both.shape != score.shape:  # (a model without a frame yet: nothing to compare)
+                both = np.zeros(score.shape, bool)
+            excess = (_foreground_fraction(score, both)
+                      - self.still_versus * _foreground_fraction(compensated_score, both))
+        self._votes.append((fraction, snr, excess))
+        fraction, _, excess = np.median(np.array(self._votes), axis=0)
+        self.camera_still = bool(fraction < self.still_model and excess <= SAMPLE_SLACK)
         return score if self.camera_still else None
+
+
+def _foreground_fraction(score: np.ndarray, where: Optional[np.ndarray] = None) -> float:
+    """The fraction of an ``(h, w)`` background score above the decision threshold (1), over
+    the ``(h, w) bool`` pixels ``where`` (default all; 0 when ``where`` is empty)."""
+    if where is None:
+        return float(np.count_nonzero(score > 1.0)) / score.size
+    n = int(np.count_nonzero(where))
+    return float(np.count_nonzero((score > 1.0) & where)) / n if n else 0.0
 
 
 # ---------------------------------------------------------------------- known camera motion

@@ -106,6 +106,17 @@ def test_object_on_static_background_is_found():
     assert np.count_nonzero(mask) < 1.3 * 30 * 40
 
 
+def test_a_pixel_is_sensitive_where_its_threshold_is_within_the_limit():
+    model = CompensatedBackground(BackgroundConfig(k_sigma=2.0, min_diff=10.0))
+    frame = np.zeros((4, 6, 3), np.uint8)
+    model.reset(frame)
+    model.var[...] = 8.0 ** 2  # threshold 16 gray levels
+    model.var[0, 0, 2] = 25.0 ** 2  # one channel's spread is enough to blind a pixel
+    seen = model.sensitive(within=20.0)
+    assert seen.shape == (4, 6) and seen.sum() == 23 and not seen[0, 0]
+    assert not model.sensitive(within=8.0).any()  # below min_diff nothing can be seen
+
+
 def test_flow_violation_marks_disagreeing_vectors():
     ys, xs = np.mgrid[4:100:8, 4:100:8]
     pts = np.stack([xs.ravel(), ys.ravel()], 1).astype(np.float32)

@@ -14,6 +14,7 @@ from bgsub.engines import get_engine_spec
 from bgsub.engines.config import STAGES, CameraConfig, EngineConfig, stage_configs
 from bgsub.engines.frontend import NO_MOTION, MotionResult
 from bgsub.engines.frontends.grbm import GRBM_TUNED
+from bgsub.background.compensated import CompensatedBackground
 from bgsub.engines.parts import (SMALL_REGION, MotionHoldBack, SceneCut, SmallRegionRule,
                                  StillCameraSwitch)
 from bgsub.engines.threads import SecondThread
@@ -115,6 +116,62 @@ def test_the_sample_model_serves_while_no_rigid_motion_stands_out():
     switch.reset(frame)
     score = switch.judge(frame, NO_MOTION)  # no fit: nothing stands out
     assert switch.camera_still and score is not None and score.shape == frame.shape
+
+
+def _compensated(frame, spread=6.0):
+    """A compensated model of ``frame`` whose standard deviation is ``spread`` everywhere."""
+    model = CompensatedBackground()
+    model.reset(frame)
+    model.var[...] = spread ** 2
+    return model
+
+
+def _with_rows(frame, rows, value=200):
+    """``frame`` with its first ``rows`` rows set to ``value``: what the sample model calls
+    new."""
+    out = frame.copy()
+    out[:rows] = value
+    return out
+
+
+def _judge_rows(compensated_rows, *, spread=6.0, versus=1.5):
+    """Whether the switch takes the camera as still when the sample model calls 4 rows of 40
+    (10 %) new and the compensated model ``compensated_rows``."""
+    switch = StillCameraSwitch(still_model=0.15, still_snr=4.0, window=1, still_versus=versus)
+    frame = np.full((40, 50), 60, np.uint8)
+    switch.reset(frame)
+    score = np.zeros(frame.shape, np.float32)
+    score[:compensated_rows] = 2.0
+    out = switch.judge(_with_rows(frame, 4), NO_MOTION, compensated=_compensated(frame, spread),
+                       compensated_score=score)
+    assert (out is not None) is switch.camera_still
+    return switch.camera_still
+
+
+@pytest.mark.parametrize("compensated_rows, still", [(2, False), (4, True)])
+def test_the_sample_model_is_not_used_where_it_calls_many_times_the_compensated_foreground(
+        compensated_rows, still):
+    # 10 % against 2 rows (5 %) is beyond still_versus 1.5 (7.5 %, + 0.5 %): not used;
+    # against 4 rows it is within: used.
+    assert _judge_rows(compensated_rows) is still
+
+
+def test_a_blind_compensated_model_does_not_veto_the_sample_model():
+    # A spread of 40 gray levels (threshold 80 at k_sigma 2: water, flicker) sees nothing;
+    # that it calls nothing is no sign that the sample model is wrong.
+    assert _judge_rows(0, spread=40.0)
+    assert not _judge_rows(0, spread=6.0)
+
+
+def test_a_young_compensated_model_that_calls_nothing_does_not_veto_the_sample_model():
+    switch = StillCameraSwitch(still_model=0.15, still_snr=4.0, window=1, still_versus=4.0)
+    frame = np.full((40, 50), 60, np.uint8)
+    switch.reset(frame)
+    one = frame.copy()
+    one[0, 0] = 200  # one pixel of 2,000 (0.05 %): within the slack
+    nothing = np.zeros(frame.shape, np.float32)
+    assert switch.judge(one, NO_MOTION, compensated=_compensated(frame),
+                        compensated_score=nothing) is not None
 
 
 def test_a_rigid_motion_switches_the_sample_model_off():

@@ -14,7 +14,7 @@ Sets:
   temporal ROI but the first; overall = mean of the families;
 * ``samples``: ``bgsub samples`` scenes rendered in memory (every moving category, seeds 0-2,
   60 frames), F per category over the seeds, mean over the categories (half A = seed 0 and 2,
-  B = seed 1).
+  B = seed 1); ``static-samples``: the same for the static category alone.
 
 Usage (minutes; two sequences at a time with ``--jobs 2``)::
 
@@ -64,7 +64,7 @@ def sequences(which: str, half: str) -> List[Tuple[str, str]]:
     else:
         from bgsub.samples import CATEGORIES
         for cat in CATEGORIES:
-            if cat != "static":
+            if (cat == "static") == (which == "static-samples"):
                 groups[cat] = [f"{cat}:{seed}" for seed in SAMPLE_SEEDS]
     out = []
     for family, members in groups.items():
@@ -167,7 +167,7 @@ def summarise(which: str, results: List[dict]) -> dict:
         by_family[r["family"]].append(r)
     families = {}
     for family, rows in by_family.items():
-        if which == "samples":
+        if which in ("samples", "static-samples"):
             families[family] = f_measure(*np.sum([r["counts"] for r in rows], axis=0))
         else:
             families[family] = float(np.mean([f_measure(*r["counts"]) for r in rows]))
@@ -179,7 +179,8 @@ def summarise(which: str, results: List[dict]) -> dict:
 
 def main(argv: Optional[List[str]] = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--set", choices=("generated", "real", "samples"), default="generated")
+    ap.add_argument("--set", choices=("generated", "real", "samples", "static-samples"),
+                    default="generated")
     ap.add_argument("--half", choices=("A", "B", "all"), default="all")
     ap.add_argument("-m", "--method", default="grbm")
     ap.add_argument("-p", "--param", action="append", default=[], metavar="KEY=VALUE")

@@ -354,11 +354,11 @@ class StillCameraSwitch:
         fraction = _foreground_fraction(score)
         excess = -np.inf
         if compensated is not None and compensated_score is not None and self.still_versus > 0:
-            both = compensated.sensitive(within=BLIND_BEYOND)
-            if both.shape != score.shape:  # (a model without a frame yet: nothing to compare)
-                both = np.zeros(score.shape, bool)
-            excess = (_foreground_fraction(score, both)
-                      - self.still_versus * _foreground_fraction(compensated_score, both))
+            seeing = compensated.sensitive(within=BLIND_BEYOND)
+            if seeing.shape != score.shape:  # (a model without a frame yet: nothing to compare)
+                seeing = np.zeros(score.shape, bool)
+            excess = (_foreground_fraction(score, seeing)
+                      - self.still_versus * _foreground_fraction(compensated_score, seeing))
         self._votes.append((fraction, snr, excess))
         fraction, _, excess = np.median(np.array(self._votes), axis=0)
         self.camera_still = bool(fraction < self.still_model and excess <= SAMPLE_SLACK)

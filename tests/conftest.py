@@ -253,3 +253,17 @@ def serve_folder(folder, *, cut_at=None, hold=0.0):
     finally:
         server.shutdown()
         server.server_close()
+
+
+def read_frames(path) -> list:
+    """Every frame OpenCV decodes from the video file at ``path``, as ``(H, W, 3) uint8``."""
+    import cv2
+
+    capture = cv2.VideoCapture(str(path))
+    frames = []
+    ok, frame = capture.read()
+    while ok:
+        frames.append(frame)
+        ok, frame = capture.read()
+    capture.release()
+    return frames

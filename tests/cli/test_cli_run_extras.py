@@ -15,6 +15,7 @@ from bgsub.cli import main
 from bgsub.engines import Engine, Param, register_engine
 from bgsub.objects import find_regions
 from bgsub.samples import SceneSpec, render_frames
+from conftest import read_frames
 
 N = 40
 
@@ -118,21 +119,11 @@ def test_objects_csv_is_the_motchallenge_layout(clip, tmp_path):
     assert rows == expected and rows
 
 
-def _frames(path: Path) -> list:
-    capture = cv2.VideoCapture(str(path))
-    frames = []
-    ok, frame = capture.read()
-    while ok:
-        frames.append(frame)
-        ok, frame = capture.read()
-    return frames
-
-
 def test_vis_draws_the_boxes_and_ids(clip, tmp_path):
     assert _run(clip, tmp_path / "a", "--vis", tmp_path / "plain.mkv") == 0
     assert _run(clip, tmp_path / "b", "--vis", tmp_path / "boxes.mkv",
                 "--objects", tmp_path / "o.jsonl") == 0
-    plain, boxes = _frames(tmp_path / "plain.mkv"), _frames(tmp_path / "boxes.mkv")
+    plain, boxes = read_frames(tmp_path / "plain.mkv"), read_frames(tmp_path / "boxes.mkv")
     assert len(plain) == len(boxes) == N
     for frame_a, frame_b, line in zip(plain, boxes, _jsonl(tmp_path / "o.jsonl")):
         changed = np.any(frame_a != frame_b, axis=2)

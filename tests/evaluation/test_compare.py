@@ -18,7 +18,7 @@ from bgsub.engines import Engine, Param, register_engine
 from bgsub.evaluation.compare import TileLayout, compare_methods
 from bgsub.errors import InputError, OutputError
 from bgsub.evaluation.cdnet import METRIC_NAMES, Metrics, evaluate_sequence
-from conftest import SCENE_H, SCENE_W, write_input_sequence
+from conftest import SCENE_H, SCENE_W, read_frames, write_input_sequence
 
 METHODS = ["framediff", "mog2"]
 
@@ -143,14 +143,7 @@ def test_side_by_side_video_size_and_frame_count(sequence: Path, tmp_path: Path)
     compare_methods(sequence, methods=METHODS, report_dir=out, masks="none")
     layout = TileLayout.for_frames(W, H, ["input", "ground truth", *METHODS])
     assert (layout.width, layout.height) == (4 * W, H)
-    capture = cv2.VideoCapture(str(out / "side_by_side.mp4"))
-    frames = []
-    while True:
-        ok, frame = capture.read()
-        if not ok:
-            break
-        frames.append(frame)
-    capture.release()
+    frames = read_frames(out / "side_by_side.mp4")
     assert len(frames) == 8
     assert frames[0].shape == (layout.height, layout.width, 3)
 

@@ -18,7 +18,7 @@ from bgsub.cli import main
 from bgsub.errors import OutputError, ProcessingError
 from bgsub.io.h264 import h264_available, picture_codec
 from bgsub.io.sinks import VideoSink
-from conftest import write_box_clip
+from conftest import read_frames, write_box_clip
 
 needs_h264 = pytest.mark.skipif(not h264_available(),
                                 reason="PyAV with libx264 not installed (the h264 extra)")
@@ -44,18 +44,6 @@ def is_mp4v(path: Path) -> bool:
     return b"mp4v" in path.read_bytes() and fourcc(path) in ("mp4v", "fmp4")
 
 
-def frames_of(path: Path) -> list:
-    capture = cv2.VideoCapture(str(path))
-    frames = []
-    while True:
-        ok, frame = capture.read()
-        if not ok:
-            break
-        frames.append(frame)
-    capture.release()
-    return frames
-
-
 def _pictures(n: int = 10, w: int = 66, h: int = 50) -> list:
     out = []
     for k in range(n):
@@ -73,7 +61,7 @@ def test_mp4_is_h264_by_default_with_pyav_and_reads_back(tmp_path: Path) -> None
         for picture in pictures:
             sink.write(picture)
     assert sink.codec == "h264" and is_h264(path)
-    back = frames_of(path)
+    back = read_frames(path)
     assert len(back) == len(pictures)
     assert np.abs(back[5][:49, :65].astype(int) - pictures[5]).mean() < 6  # lossy, close
 
@@ -94,7 +82,7 @@ def test_codec_mp4v_forces_mpeg4_part2(tmp_path: Path) -> None:
         for picture in _pictures():
             sink.write(picture)
     assert sink.codec == "mp4v" and is_mp4v(path)
-    assert len(frames_of(path)) == 10
+    assert len(read_frames(path)) == 10
 
 
 @without_h264

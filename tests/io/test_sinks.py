@@ -13,6 +13,7 @@ import pytest
 from bgsub.io import outputs, sinks
 from bgsub.errors import OutputError, ProcessingError
 from bgsub.io.sinks import VideoSink, VisSink, open_mask_sink, process, render_overlay
+from conftest import read_frames
 
 W, H = 48, 32
 
@@ -20,18 +21,6 @@ W, H = 48, 32
 def _masks(n: int, seed: int = 0) -> List[np.ndarray]:
     rng = np.random.default_rng(seed)
     return [np.where(rng.random((H, W)) < 0.3, 255, 0).astype(np.uint8) for _ in range(n)]
-
-
-def _read_video(path: Path) -> List[np.ndarray]:
-    capture = cv2.VideoCapture(str(path), cv2.CAP_FFMPEG)
-    frames = []
-    while True:
-        ok, frame = capture.read()
-        if not ok:
-            break
-        frames.append(frame)
-    capture.release()
-    return frames
 
 
 # ------------------------------------------------------------------------------- mask videos
@@ -45,7 +34,7 @@ def test_lossless_mask_video_round_trip_is_exact(tmp_path, ext):
         for k, mask in enumerate(masks):
             sink.write(mask, k)
     assert sink.frames_written == 5
-    frames = _read_video(path)
+    frames = read_frames(path)
     assert len(frames) == 5
     for got, want in zip(frames, masks):
         for c in range(3):
@@ -63,7 +52,7 @@ def test_mp4_mask_video_warns_it_is_lossy(tmp_path, capsys):
         sink.write(_masks(1)[0])
     err = capsys.readouterr().err
     assert "lossy" in err and len(err.strip().splitlines()) == 1
-    assert len(_read_video(tmp_path / "m.mp4")) == 1
+    assert len(read_frames(tmp_path / "m.mp4")) == 1
 
 
 def test_video_is_written_under_a_temporary_name_then_renamed(tmp_path):
@@ -83,7 +72,7 @@ def test_interrupt_leaves_a_readable_partial_video(tmp_path, capsys):
             for mask in masks:
                 sink.write(mask)
             raise KeyboardInterrupt
-    frames = _read_video(path)
+    frames = read_frames(path)
     assert len(frames) == 3
     np.testing.assert_array_equal(frames[2][:, :, 0], masks[2])
     err = capsys.readouterr().err.strip().splitlines()
@@ -98,7 +87,7 @@ def test_error_inside_with_also_keeps_the_partial_video(tmp_path, capsys):
         with open_mask_sink(path, width=W, height=H, fps=20) as sink:
             sink.write(_masks(1)[0])
             raise RuntimeError("engine failed")
-    assert len(_read_video(path)) == 1
+    assert len(read_frames(path)) == 1
     assert "1 frame" in capsys.readouterr().err
 
 
@@ -171,7 +160,7 @@ def test_existing_video_is_refused_and_overwrite_replaces_it(tmp_path):
     assert path.read_bytes() == b"old"
     with open_mask_sink(path, width=W, height=H, fps=20, overwrite=True) as sink:
         sink.write(_masks(1)[0])
-    assert len(_read_video(path)) == 1
+    assert len(read_frames(path)) == 1
 
 
 def test_missing_parent_folder_for_a_video(tmp_path):
@@ -306,7 +295,7 @@ def test_video_sink_writes_colour_pictures(tmp_path, ext):
     with VideoSink(tmp_path / f"p{ext}", fps=10) as sink:
         for _ in range(4):
             sink.write(picture)
-    frames = _read_video(tmp_path / f"p{ext}")
+    frames = read_frames(tmp_path / f"p{ext}")
     assert len(frames) == 4 and frames[0].shape == (H, W, 3)
     assert abs(int(frames[0][:, :, 2].mean()) - 200) < 10 and frames[0][:, :, 0].mean() < 10
 
@@ -318,7 +307,7 @@ def test_video_sink_keeps_the_last_column_and_row_of_an_odd_size(tmp_path):
     picture[:, -1] = 255
     with VideoSink(tmp_path / "p.mkv", fps=10) as sink:
         sink.write(picture)
-    (frame,) = _read_video(tmp_path / "p.mkv")
+    (frame,) = read_frames(tmp_path / "p.mkv")
     assert frame.shape == (H + 2, W + 2, 3)
     np.testing.assert_array_equal(frame[:H + 1, :W + 1], picture)  # FFV1: exact
 
@@ -329,7 +318,7 @@ def test_video_sink_blanks_keep_the_video_in_step(tmp_path):
         sink.write_blank()  # before the size is known
         sink.write(picture)
         sink.write_blank()
-    frames = _read_video(tmp_path / "p.mkv")
+    frames = read_frames(tmp_path / "p.mkv")
     assert [int(f.mean()) < 20 for f in frames] == [True, False, True]
 
 
@@ -356,7 +345,7 @@ def test_vis_sink_writes_side_by_side_video(tmp_path):
     with VisSink(tmp_path / "vis.mp4", width=W, height=H, fps=10) as vis:
         for mask in _masks(3):
             vis.write(np.zeros((H, W, 3), np.uint8), mask)
-    frames = _read_video(tmp_path / "vis.mp4")
+    frames = read_frames(tmp_path / "vis.mp4")
     assert len(frames) == 3 and frames[0].shape == (H, 2 * W, 3)
 
 
@@ -365,7 +354,7 @@ def test_vis_sink_takes_a_bool_mask_as_0_and_255(tmp_path):
     frame = np.full((H, W, 3), 100, np.uint8)
     with VisSink(tmp_path / "vis.mkv", width=W, height=H, fps=10) as vis:
         vis.write(frame, mask > 0)
-    got = _read_video(tmp_path / "vis.mkv")[0]
+    got = read_frames(tmp_path / "vis.mkv")[0]
     np.testing.assert_array_equal(got, render_overlay(frame, mask))
 
 

@@ -14,7 +14,7 @@ from bgsub.io.loop import Consumer, FrameLoop, FrameResult, hold_interrupts
 from bgsub.io.sinks import VideoSink, VisSink, open_mask_sink
 from bgsub.io.writers import DebugImageWriter, MaskWriter, MotionWriter, VisWriter
 
-from test_sinks import _read_video
+from conftest import read_frames
 
 W, H = 48, 32
 
@@ -115,7 +115,7 @@ def test_an_interrupt_while_a_frame_is_prepared_leaves_it_out_of_every_output(tm
         with pytest.raises(KeyboardInterrupt):
             loop.run(_frames(5))
     assert loop.stats.frames == 2 and not loop.stats.complete
-    assert len(_read_video(tmp_path / "m.mkv")) == 2
+    assert len(read_frames(tmp_path / "m.mkv")) == 2
     assert capsys.readouterr().err == (f"bgsub: {tmp_path / 'm.mkv'} is partial (interrupted) "
                                        "but valid: it holds 2 frames\n")
 
@@ -130,7 +130,7 @@ def test_a_signal_while_a_frame_is_handed_out_waits_until_every_output_has_it(tm
                 VideoSink(tmp_path / "f.mkv", fps=10) as flow:
             FrameLoop(_Threshold(), [_Signal("add", at=2), MaskWriter(masks), VisWriter(vis),
                                      DebugImageWriter(flow)]).run(_frames(6))
-    assert [len(_read_video(tmp_path / name)) for name in ("m.mkv", "v.mkv", "f.mkv")] == [3] * 3
+    assert [len(read_frames(tmp_path / name)) for name in ("m.mkv", "v.mkv", "f.mkv")] == [3] * 3
     assert signal.getsignal(signal.SIGINT) is before
 
 
@@ -143,7 +143,7 @@ def test_a_second_signal_while_the_outputs_are_finished_is_ignored(tmp_path, cap
         with pytest.raises(KeyboardInterrupt) as caught:
             loop.run(_frames(5))
     assert caught.value.__context__ is None  # no second KeyboardInterrupt on the way
-    assert len(_read_video(tmp_path / "m.mkv")) == 2
+    assert len(read_frames(tmp_path / "m.mkv")) == 2
     assert capsys.readouterr().err == (f"bgsub: {tmp_path / 'm.mkv'} is partial (interrupted) "
                                        "but valid: it holds 2 frames\n")
 
@@ -171,7 +171,7 @@ def test_an_output_that_got_every_frame_is_called_complete_not_partial(tmp_path,
         with pytest.raises(stop):
             FrameLoop(engines, [MaskWriter(masks, engine="a"), MaskWriter(folder, engine="b"),
                                 last]).run(_frames(4))
-    assert len(_read_video(tmp_path / "m.mkv")) == 4 and len(list((tmp_path / "out").iterdir())) == 4
+    assert len(read_frames(tmp_path / "m.mkv")) == 4 and len(list((tmp_path / "out").iterdir())) == 4
     assert capsys.readouterr().err == (
         f"bgsub: {tmp_path / 'out'} is complete: {words} after writing all 4 frames\n"
         f"bgsub: {tmp_path / 'm.mkv'} is complete: {words} after writing all 4 frames\n")
@@ -182,7 +182,7 @@ def test_a_signal_held_while_an_output_is_finished_is_raised_after_it(tmp_path):
         loop = FrameLoop(_Threshold(), [MaskWriter(masks), _Signal("close")])
         with pytest.raises(KeyboardInterrupt):
             loop.run(_frames(3))
-    assert loop.stats.complete and len(_read_video(tmp_path / "m.mkv")) == 3
+    assert loop.stats.complete and len(read_frames(tmp_path / "m.mkv")) == 3
 
 
 class _Plain:

@@ -9,7 +9,8 @@ from bgsub.errors import OutputError
 from bgsub.io.mask_sinks import MaskVideoSink
 from bgsub.io.sinks import MotionSink, VideoSink, open_mask_sink
 
-from test_sinks import H, W, _masks, _read_video
+from conftest import read_frames
+from test_sinks import H, W, _masks
 
 _BUSY = "another run is writing it now; wait for it to end or choose another name"
 
@@ -22,7 +23,7 @@ def test_a_second_writer_of_the_same_masks_is_refused_and_the_first_finishes(tmp
         with pytest.raises(OutputError, match=f"^{path}: {_BUSY}$"):
             open_mask_sink(path, width=W, height=H, fps=10, overwrite=True)
         first.write(_masks(1)[0], 1)
-    held = len(_read_video(path)) if name.endswith(".mkv") else len(list(path.iterdir()))
+    held = len(read_frames(path)) if name.endswith(".mkv") else len(list(path.iterdir()))
     assert held == 2
     assert sorted(p.name for p in tmp_path.iterdir()) == [name]
 
@@ -44,7 +45,7 @@ def test_the_output_is_free_again_once_the_first_writer_is_closed(tmp_path):
     with open_mask_sink(path, width=W, height=H, fps=10, overwrite=True) as second:
         second.write(_masks(1)[0])
         second.write(_masks(1)[0])
-    assert len(_read_video(path)) == 2
+    assert len(read_frames(path)) == 2
 
 
 def test_an_output_another_run_finished_meanwhile_is_not_replaced(tmp_path):
@@ -54,7 +55,7 @@ def test_an_output_another_run_finished_meanwhile_is_not_replaced(tmp_path):
         first.write(_masks(1)[0])
     with pytest.raises(OutputError, match="another run finished it meanwhile"):
         MaskVideoSink(path, width=W, height=H, fps=10)
-    assert len(_read_video(path)) == 1
+    assert len(read_frames(path)) == 1
 
 
 def test_a_temporary_file_a_killed_run_left_is_taken_over(tmp_path):
@@ -62,7 +63,7 @@ def test_a_temporary_file_a_killed_run_left_is_taken_over(tmp_path):
     stale.write_bytes(b"left by a run killed with SIGKILL")
     with open_mask_sink(tmp_path / "m.mkv", width=W, height=H, fps=10) as sink:
         sink.write(_masks(1)[0])
-    assert len(_read_video(tmp_path / "m.mkv")) == 1
+    assert len(read_frames(tmp_path / "m.mkv")) == 1
     assert sorted(p.name for p in tmp_path.iterdir()) == ["m.mkv"]
 
 

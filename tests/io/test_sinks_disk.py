@@ -21,7 +21,8 @@ from bgsub.io import mask_sinks, motion_sink, videofile
 from bgsub.errors import OutputError, ProcessingError
 from bgsub.io.sinks import MotionSink, VideoSink, VisSink, open_mask_sink, process
 
-from test_sinks import ClosedWriter, H, W, _masks, _read_video
+from conftest import read_frames
+from test_sinks import ClosedWriter, H, W, _masks
 
 _REAL_WRITER = cv2.VideoWriter
 
@@ -202,7 +203,7 @@ def test_a_mask_video_the_full_disk_cut_short_is_kept_and_says_what_it_holds(
     held = re.fullmatch(r".*m.mkv: the disk is full; the video is valid but holds only (\d+) of "
                         r"the 10 frames written to it", str(caught.value))
     assert held, str(caught.value)
-    assert len(_read_video(path)) == int(held.group(1)) > 0
+    assert len(read_frames(path)) == int(held.group(1)) > 0
     assert sorted(p.name for p in tmp_path.iterdir()) == ["m.mkv"]
 
 
@@ -220,7 +221,7 @@ def test_a_nearly_full_disk_is_no_error_when_the_video_reads_back_whole(tmp_path
     with open_mask_sink(tmp_path / "m.mkv", width=W, height=H, fps=20) as sink:
         for mask in _masks(3):
             sink.write(mask)
-    assert len(_read_video(tmp_path / "m.mkv")) == 3
+    assert len(read_frames(tmp_path / "m.mkv")) == 3
 
 
 @pytest.mark.skipif(not hasattr(signal, "SIGXFSZ"), reason="needs POSIX file size limits")
@@ -245,7 +246,7 @@ def test_a_failing_video_writer_says_it_once_without_opencv_warnings(tmp_path, c
     message = str(caught.value)
     assert "removed" in message or "holds only" in message, message
     if path.exists():  # kept: it plays, and holds what the message says
-        assert f"holds only {len(_read_video(path))} of the " in message
+        assert f"holds only {len(read_frames(path))} of the " in message
     assert not [p for p in tmp_path.iterdir() if ".partial" in p.name]
     err = capfd.readouterr().err
     assert err == "", err[:300]  # no OpenCV warning per frame, no "partial" beside the error
@@ -263,8 +264,8 @@ def test_a_write_opencv_reports_failed_stops_the_run_there(tmp_path, capsys, cut
                 VisSink(tmp_path / "v.mkv", width=W, height=H, fps=10) as vis:
             process(_frames(10), _Moving(), masks, vis=vis)
     assert str(caught.value) == f"{tmp_path / 'v.mkv'}: {words}"
-    assert len(_read_video(tmp_path / "m.mkv")) == fail_at  # the run stopped at that frame
-    assert len(_read_video(tmp_path / "v.mkv")) == fail_at - 1 or fail_at == 1
+    assert len(read_frames(tmp_path / "m.mkv")) == fail_at  # the run stopped at that frame
+    assert len(read_frames(tmp_path / "v.mkv")) == fail_at - 1 or fail_at == 1
     assert (tmp_path / "v.mkv").exists() == (fail_at > 1)
     # One line for the masks; the error itself says what became of v.mkv.
     n = "1 frame" if fail_at == 1 else f"{fail_at} frames"
@@ -287,7 +288,7 @@ def test_an_output_failing_as_it_is_finished_leaves_the_others_finished(tmp_path
                                                 codec="mp4v"))
             motion = stack.enter_context(MotionSink(tmp_path / "cam.npy"))
             process(_frames(6), _Moving(), masks, vis=vis, motion=motion)
-    assert len(_read_video(tmp_path / "m.mkv")) == 6
+    assert len(read_frames(tmp_path / "m.mkv")) == 6
     assert np.load(tmp_path / "cam.npy").shape == (6, 3, 3)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cam.npy", "m.mkv"]
     # It holds every frame: not "partial ... holds 6 frames".

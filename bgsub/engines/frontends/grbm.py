@@ -19,6 +19,7 @@ from bgsub.motion.config import FlowConfig
 from bgsub.motion.flowfield import (FlowEstimate, FramePyramid, dense_from_patches,
                                     estimate_flow, prepare_first_frame)
 from bgsub.motion.global_motion import GlobalMotion
+from bgsub.motion.refine import refine_vectors
 from bgsub.settings import check_settings, config_params, setting
 
 __all__ = ["GrbmConfig", "GrbmFrontEnd", "GRBM_TUNED", "FLOW_PARAMS", "Reading"]
@@ -58,6 +59,13 @@ class GrbmConfig:
                                       "half-size image as stride in the full one", low=0)
     prior_levels: int = setting(0, "pyramid levels used when the previous frame's motion "
                                     "predicts this one (0 = always the full pyramid)", low=0)
+    refine_window: int = setting(13, "side (working-size px) of the window in which each "
+                                     "vector is refined to sub-pixel precision by Lucas-Kanade "
+                                     "iterations before the camera fit (the patch size; 0 = "
+                                     "the gated RBM's vectors as read)", low=0, high=63)
+    refine_within: float = setting(1.5, "a refined vector that moved this many px or more "
+                                        "from the gated RBM's reading keeps the reading",
+                                   above=0)
     retry_below: float = setting(0.6, "with prior_levels > 0: when fewer than this fraction of "
                                       "the patches agree with the motion found from the "
                                       "previous frame's, also search with the full pyramid",
@@ -158,21 +166,33 @@ class GrbmFrontEnd(MotionFrontEnd):
     def measure(self, prev: FramePyramid, cur: FramePyramid, *, prior: Optional[np.ndarray],
                 fit: CameraFit) -> MotionResult:
         best = self._coarser_if_blurred(prev, cur, prior, fit)
-        self.last_flow = best.flow
-        first = _result(best)
         reduced = self.flow.levels == 0 and self.config.prior_levels > 0
-        if (prior is None or not reduced
-                or (best.motion.ok and best.support >= self.config.retry_below)):
-            return first
-        # The prior may be wrong (the camera changed course): also try from scratch and keep
-        # the reading more patches agree with.
-        retry = self.read(prev, cur, None, finest=self.flow.finest, fit=fit)
-        second = _result(retry)
-        if retry.motion.ok and (not best.motion.ok
-                                or retry.motion.n_inliers > best.motion.n_inliers):
-            self.last_flow = retry.flow
-            return second
-        return first
+        if prior is not None and reduced and not (best.motion.ok
+                                                  and best.support >= self.config.retry_below):
+            # The prior may be wrong (the camera changed course): also try from scratch and
+            # keep the reading more patches agree with.
+            retry = self.read(prev, cur, None, finest=self.flow.finest, fit=fit)
+            if retry.motion.ok and (not best.motion.ok
+                                    or retry.motion.n_inliers > best.motion.n_inliers):
+                best = retry
+        self.last_flow = best.flow
+        return self._refined(_result(best), prev, cur, fit)
+
+    def _refined(self, result: MotionResult, prev: FramePyramid, cur: FramePyramid,
+                 fit: CameraFit) -> MotionResult:
+        """``result`` with its usable vectors refined to sub-pixel precision
+        (:func:`~bgsub.motion.refine.refine_vectors` on the working-size frames) and the camera
+        refitted to them; as it was when refinement is off or the refit fails."""
+        c = self.config
+        usable = result.weights > 0
+        if c.refine_window == 0 or not result.motion.ok or not usable.any():
+            return result
+        disp = result.disp.copy()
+        disp[usable] = refine_vectors(prev.images[0], cur.images[0], result.points[usable],
+                                      result.disp[usable], window=c.refine_window,
+                                      within=c.refine_within)
+        motion = fit(result.points, disp, result.weights, cur.images[0].shape)
+        return dataclasses.replace(result, disp=disp, motion=motion) if motion.ok else result
 
     def _coarser_if_blurred(self, prev: FramePyramid, cur: FramePyramid,
                             prior: Optional[np.ndarray], fit: CameraFit) -> Reading:

@@ -50,6 +50,7 @@ STAGES = [
     ("bgsub.motion.patches", "fit_global_motion", "front end: RANSAC fits"),
     ("bgsub.engines.frontend", "CameraFit.__call__", "front end: RANSAC fits"),
     ("bgsub.motion.starts", "photometric_agreement", "front end: start choice (photometric)"),
+    ("bgsub.engines.frontends.grbm", "refine_vectors", "front end: sub-pixel refinement"),
     ("bgsub.motion.flowfield", "estimate_flow", "front end: coarse-to-fine bookkeeping"),
     ("bgsub.engines.frontends.grbm", "estimate_flow", "front end: coarse-to-fine bookkeeping"),
     ("bgsub.engines.frontends.grbm", "prepare_first_frame",

@@ -17,7 +17,10 @@ import numpy as np
 
 from bgsub.errors import InputError
 
-__all__ = ["refine_vectors"]
+__all__ = ["MIN_REFINE_WINDOW", "refine_vectors"]
+
+#: The smallest window the tracker accepts (OpenCV needs more than 2 px).
+MIN_REFINE_WINDOW = 3
 
 _CRITERIA = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 10, 0.01)
 
@@ -35,7 +38,8 @@ def refine_vectors(prev: np.ndarray, cur: np.ndarray, points: np.ndarray, disp: 
     disp : (N, 2) float
         Their displacements to ``cur``: the start of the iterations.
     window : int
-        Side of the square window the difference is summed over (the patch size).
+        Side of the square window the difference is summed over (the patch size), at least
+        :data:`MIN_REFINE_WINDOW`.
     within : float
         A refined vector that moved by this many pixels or more from its start converged to
         another minimum (a flat patch slid along, a repeated texture): the start is kept.
@@ -47,8 +51,12 @@ def refine_vectors(prev: np.ndarray, cur: np.ndarray, points: np.ndarray, disp: 
     Raises
     ------
     InputError
-        The frames differ in size, or ``points`` and ``disp`` are not both ``(N, 2)``.
+        The frames differ in size, ``points`` and ``disp`` are not both ``(N, 2)``, or
+        ``window`` is below :data:`MIN_REFINE_WINDOW`.
     """
+    if window < MIN_REFINE_WINDOW:
+        raise InputError(f"refine_vectors needs a window of at least {MIN_REFINE_WINDOW} px, "
+                         f"not {window!r}")
     if np.shape(prev) != np.shape(cur) or np.ndim(prev) != 2:
         raise InputError(f"refine_vectors needs two gray frames of one size, not "
                          f"{np.shape(prev)} and {np.shape(cur)}")

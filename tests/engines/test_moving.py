@@ -350,6 +350,8 @@ def test_engines_registered_with_documented_params():
     ("compensated", {"close": 10**6}, "'close' must be at most 99"),  # not an allocation error
     ("grbm", {"young_score": 1.5}, "'young_score' must be at most 1"),
     ("grbm", {"work_width": 5}, "'work_width' must be 0 .* or at least 32"),
+    ("grbm", {"refine_window": 2}, "'refine_window' must be 0 .* or at least 3"),
+    ("grbm", {"refine_within": 0}, "'refine_within' must be greater than 0"),
     ("mog2", {"var_min": 0.0}, "mog2: parameter 'var_min' must be greater than 0"),
 ])
 def test_out_of_range_parameters_are_refused_when_the_engine_is_made(name, params, words):

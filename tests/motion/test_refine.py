@@ -67,3 +67,10 @@ def test_mismatched_inputs_are_input_errors(prev_shape, points_shape):
     cur = np.zeros((H, W), np.uint8)
     with pytest.raises(InputError, match="refine_vectors"):
         refine_vectors(prev, cur, np.zeros(points_shape), np.zeros(points_shape))
+
+
+def test_a_window_below_three_pixels_is_an_input_error():
+    prev, cur = _pair()
+    points = _grid()[:2]
+    with pytest.raises(InputError, match="at least 3"):
+        refine_vectors(prev, cur, points, np.zeros_like(points), window=2)

@@ -19,7 +19,7 @@ from bgsub.motion.config import FlowConfig
 from bgsub.motion.flowfield import (FlowEstimate, FramePyramid, dense_from_patches,
                                     estimate_flow, prepare_first_frame)
 from bgsub.motion.global_motion import GlobalMotion
-from bgsub.motion.refine import refine_vectors
+from bgsub.motion.refine import MIN_REFINE_WINDOW, refine_vectors
 from bgsub.settings import check_settings, config_params, setting
 
 __all__ = ["GrbmConfig", "GrbmFrontEnd", "GRBM_TUNED", "FLOW_PARAMS", "Reading"]
@@ -73,6 +73,9 @@ class GrbmConfig:
 
     def __post_init__(self) -> None:
         check_settings(self)
+        if 0 < self.refine_window < MIN_REFINE_WINDOW:
+            raise InputError(f"parameter 'refine_window' must be 0 (no refinement) or at least "
+                             f"{MIN_REFINE_WINDOW}, not {self.refine_window!r}")
 
 
 class Reading(NamedTuple):

@@ -91,22 +91,48 @@ class Fusion:
 
         ``noise_scale`` replaces ``violation_noise`` (0: the vectors are one consistent motion,
         whose spread must not raise the threshold). None when the fusion ignores motion
-        evidence."""
+        evidence. The same as :meth:`combined` of :meth:`vector_evidence` and
+        :meth:`image_evidence`, which the engine runs in two threads."""
+        image = self.image_evidence(points, disp, weights if fit_weights is None else fit_weights,
+                                    matrix, prev, cur)
+        vectors = self.vector_evidence(points, disp, weights, matrix, cur.shape[:2],
+                                       noise_scale=noise_scale)
+        return self.combined(vectors, image)
+
+    def vector_evidence(self, points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
+                        matrix: np.ndarray, shape: tuple, *,
+                        noise_scale: Optional[float] = None) -> Optional[np.ndarray]:
+        """The :func:`flow_violation_map` part of :meth:`violation`, ``(h, w) float32`` for a
+        frame of ``shape`` (h, w); None when the fusion ignores motion evidence."""
         c = self.config
         if c.flow_boost == 0.0 and c.flow_damp == 0.0:
             return None
         noise = c.violation_noise if noise_scale is None else noise_scale
-        v = flow_violation_map(points, disp, matrix, weights=weights, shape=cur.shape[:2],
-                               threshold=c.violation_threshold, noise_scale=noise)
-        if c.image_cue > 0:
-            # Near 0 where the frames hold no evidence (flat areas, edges moving along
-            # themselves, a still camera's background): it never lowers the vectors' opinion.
-            local = residual_field(points, disp, weights if fit_weights is None else fit_weights,
-                                   matrix, cur.shape[:2])
-            image = motion_evidence_map(prev, cur, matrix, residual=local)
-            image *= np.float32(c.image_cue)
-            np.maximum(v, image, out=v)
-        return v
+        return flow_violation_map(points, disp, matrix, weights=weights, shape=shape,
+                                  threshold=c.violation_threshold, noise_scale=noise)
+
+    def image_evidence(self, points: np.ndarray, disp: np.ndarray, fit_weights: np.ndarray,
+                       matrix: np.ndarray, prev: np.ndarray,
+                       cur: np.ndarray) -> Optional[np.ndarray]:
+        """The frames' own part of :meth:`violation`, ``(h, w) float32`` scaled by
+        ``image_cue``; None when that cue is off or the fusion ignores motion evidence."""
+        c = self.config
+        if c.image_cue == 0 or (c.flow_boost == 0.0 and c.flow_damp == 0.0):
+            return None
+        # Near 0 where the frames hold no evidence (flat areas, edges moving along
+        # themselves, a still camera's background): it never lowers the vectors' opinion.
+        local = residual_field(points, disp, fit_weights, matrix, cur.shape[:2])
+        image = motion_evidence_map(prev, cur, matrix, residual=local)
+        image *= np.float32(c.image_cue)
+        return image
+
+    @staticmethod
+    def combined(vectors: Optional[np.ndarray],
+                 image: Optional[np.ndarray]) -> Optional[np.ndarray]:
+        """:meth:`violation` from its two parts: their maximum, in place in ``vectors``."""
+        if vectors is None or image is None:
+            return vectors
+        return np.maximum(vectors, image, out=vectors)
 
     def mask(self, score: np.ndarray, violation: Optional[np.ndarray]) -> np.ndarray:
         """The ``(h, w) uint8`` 0/255 mask of the background ``score`` ((h, w) float32) and the

@@ -126,6 +126,7 @@ class MovingCameraEngine(Engine):
                                                still_versus=c.still_versus)
                              if c.still_model > 0 else None)
         self.thread = SecondThread(overlap=c.overlap, name=self.name)
+        frontend.helper = self.thread
         self.known_motion = known_motion
         self.last_status = "ok"
         self._prev: Any = None  # the previous frame as the front end keeps it
@@ -267,20 +268,23 @@ class MovingCameraEngine(Engine):
         frame while the second thread makes the motion-evidence map of ``result`` against the
         camera's ``matrix`` (with the fixed violation threshold when ``fixed_threshold``: a
         refused region's vectors are one consistent motion, not noise about the camera's)."""
-        violation: list = []
+        image: list = []
         prev = self._prev_work
 
         def evidence() -> None:
-            violation.append(self.fusion.violation(
-                result.points, result.disp, result.evidence_weights, matrix, prev, work,
-                fit_weights=result.weights, noise_scale=0.0 if fixed_threshold else None))
+            image.append(self.fusion.image_evidence(result.points, result.disp, result.weights,
+                                                    matrix, prev, work))
 
+        # The frames' evidence is the longer job: the vectors' map is made in this thread.
         with self.thread.alongside(evidence):
             self.bg.warp(applied, sharp=rate == 0.0)
             if rate == 0.0:
                 self.registration.forget_unseen(self.bg, applied)
             score = self.bg.score(work)
-        return score, violation[0]
+            vectors = self.fusion.vector_evidence(
+                result.points, result.disp, result.evidence_weights, matrix, work.shape[:2],
+                noise_scale=0.0 if fixed_threshold else None)
+        return score, self.fusion.combined(vectors, image[0])
 
     def _finish_update(self) -> None:
         """Apply the deferred background update of the last frame, if any."""

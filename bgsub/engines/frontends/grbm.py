@@ -191,9 +191,8 @@ class GrbmFrontEnd(MotionFrontEnd):
         if c.refine_window == 0 or not result.motion.ok or not usable.any():
             return result
         disp = result.disp.copy()
-        disp[usable] = refine_vectors(prev.images[0], cur.images[0], result.points[usable],
-                                      result.disp[usable], window=c.refine_window,
-                                      within=c.refine_within)
+        disp[usable] = self._refine(prev.images[0], cur.images[0], result.points[usable],
+                                    result.disp[usable])
         motion = fit(result.points, disp, result.weights, cur.images[0].shape)
         return dataclasses.replace(result, disp=disp, motion=motion) if motion.ok else result
 
@@ -219,6 +218,24 @@ class GrbmFrontEnd(MotionFrontEnd):
             if coarser.motion.ok and (coarser.support > best.support or not best.motion.ok):
                 best = coarser
         return best
+
+    def _refine(self, prev: np.ndarray, cur: np.ndarray, points: np.ndarray,
+                disp: np.ndarray) -> np.ndarray:
+        """:func:`~bgsub.motion.refine.refine_vectors` of ``(N, 2)`` ``points`` / ``disp``,
+        half of them in the engine's second thread when it lends one (each vector is refined
+        on its own, so the split changes no result)."""
+        def refine(part: slice) -> np.ndarray:
+            return refine_vectors(prev, cur, points[part], disp[part],
+                                  window=self.config.refine_window,
+                                  within=self.config.refine_within)
+
+        if self.helper is None or self.helper.overlap <= 0 or len(points) < 2:
+            return refine(slice(None))
+        half = len(points) // 2
+        second: list = []
+        with self.helper.alongside(lambda: second.append(refine(slice(half, None)))):
+            first = refine(slice(None, half))
+        return np.concatenate([first, second[0]])
 
     def _flow_config(self, levels: int, finest: int, stride: Optional[int] = None) -> FlowConfig:
         key = (levels, finest, stride)

@@ -11,8 +11,9 @@ Each frame, at the working size (``work_width``; the mask is returned at the inp
 2. the motion to apply: small motion is held back (:class:`~bgsub.engines.parts.MotionHoldBack`);
    a frozen model (``learning_rate=0``) is registered to the frame
    (:class:`~bgsub.engines.parts.FrozenModelRegistration`);
-3. the compensated background model is warped and scores the frame, while the other thread
-   makes the motion-evidence map (:class:`~bgsub.background.fusion.Fusion`);
+3. the compensated background model is warped and scores the frame and the vectors give their
+   violation map, while the other thread makes the frames' own motion evidence
+   (:class:`~bgsub.background.fusion.Fusion`);
 4. a new shot restarts the model (:class:`~bgsub.engines.parts.SceneCut`);
 5. while the camera is still, a never-warped sample model's score replaces the compensated
    one's (:class:`~bgsub.engines.parts.StillCameraSwitch`);
@@ -265,9 +266,10 @@ class MovingCameraEngine(Engine):
                  matrix: np.ndarray, applied: np.ndarray, rate: float, *,
                  fixed_threshold: bool) -> tuple:
         """``(score, violation)``: the background model, warped by ``applied``, scores the
-        frame while the second thread makes the motion-evidence map of ``result`` against the
-        camera's ``matrix`` (with the fixed violation threshold when ``fixed_threshold``: a
-        refused region's vectors are one consistent motion, not noise about the camera's)."""
+        frame and the vectors of ``result`` give their violation map, while the second thread
+        makes the frames' own evidence, both against the camera's ``matrix`` (the vectors'
+        with the fixed violation threshold when ``fixed_threshold``: a refused region's
+        vectors are one consistent motion, not noise about the camera's)."""
         image: list = []
         prev = self._prev_work
 

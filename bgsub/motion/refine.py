@@ -17,7 +17,7 @@ import numpy as np
 
 from bgsub.errors import InputError
 
-__all__ = ["MIN_REFINE_WINDOW", "refine_vectors"]
+__all__ = ["MIN_REFINE_WINDOW", "as_uint8", "refine_vectors"]
 
 #: The smallest window the tracker accepts (OpenCV needs more than 2 px).
 MIN_REFINE_WINDOW = 3
@@ -68,7 +68,7 @@ def refine_vectors(prev: np.ndarray, cur: np.ndarray, points: np.ndarray, disp: 
         return start.copy()
     p0 = np.ascontiguousarray(points, np.float32).reshape(-1, 1, 2)
     p1 = (p0 + start.reshape(-1, 1, 2)).astype(np.float32)
-    p1, status, _ = cv2.calcOpticalFlowPyrLK(_as_uint8(prev), _as_uint8(cur), p0, p1,
+    p1, status, _ = cv2.calcOpticalFlowPyrLK(as_uint8(prev), as_uint8(cur), p0, p1,
                                              winSize=(window, window), maxLevel=0,
                                              criteria=_CRITERIA,
                                              flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
@@ -78,7 +78,7 @@ def refine_vectors(prev: np.ndarray, cur: np.ndarray, points: np.ndarray, disp: 
     return np.where(keep[:, None], refined, start).astype(np.float32)
 
 
-def _as_uint8(image: np.ndarray) -> np.ndarray:
+def as_uint8(image: np.ndarray) -> np.ndarray:
     """``image`` as (H, W) uint8 (float32 in [0, 1] scaled by 255, rounded, saturated)."""
     if image.dtype == np.uint8:
         return image

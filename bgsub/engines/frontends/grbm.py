@@ -19,7 +19,7 @@ from bgsub.motion.config import FlowConfig
 from bgsub.motion.flowfield import (FlowEstimate, FramePyramid, dense_from_patches,
                                     estimate_flow, prepare_first_frame)
 from bgsub.motion.global_motion import GlobalMotion
-from bgsub.motion.refine import MIN_REFINE_WINDOW, refine_vectors
+from bgsub.motion.refine import MIN_REFINE_WINDOW, as_uint8, refine_vectors
 from bgsub.settings import check_settings, config_params, setting
 
 __all__ = ["GrbmConfig", "GrbmFrontEnd", "GRBM_TUNED", "FLOW_PARAMS", "Reading"]
@@ -224,6 +224,8 @@ class GrbmFrontEnd(MotionFrontEnd):
         """:func:`~bgsub.motion.refine.refine_vectors` of ``(N, 2)`` ``points`` / ``disp``,
         half of them in the engine's second thread when it lends one (each vector is refined
         on its own, so the split changes no result)."""
+        prev, cur = as_uint8(prev), as_uint8(cur)  # once, not in each half
+
         def refine(part: slice) -> np.ndarray:
             return refine_vectors(prev, cur, points[part], disp[part],
                                   window=self.config.refine_window,

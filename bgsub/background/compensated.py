@@ -9,6 +9,14 @@ them foreground. Young pixels learn fast (rate ``1 / (age + 1)``, a plain averag
 ``alpha``. The comparison is against the background's local min/max envelope (``envelope``
 px), so the sub-pixel misregistration that every warp leaves on strong edges does not light up
 as foreground.
+
+Pixels called foreground learn slowly, so an object does not fade into the background while it
+moves. An object present when the model began leaves a ghost that slow learning would keep for
+a long time. The model therefore remembers which pixels it has ever learnt as background
+(:attr:`CompensatedBackground.seen`). A pixel it has never seen as background, whose current
+colour the model of a background pixel within ``ghost_radius`` explains, takes that colour: a
+ghost heals from its edges inward, up to ``ghost_radius`` px per frame. An object that arrives
+over background the model has seen is never healed this way, whatever its colour.
 """
 
 from __future__ import annotations
@@ -63,6 +71,11 @@ class BackgroundConfig:
     young_score: float = setting(0.6, "score of pixels younger than min_age (below 1: "
                                       "foreground only where local motion evidence boosts it; "
                                       "0 = never)", low=0, high=1)
+    ghost_radius: int = setting(6, "a pixel called foreground that the model has never seen "
+                                   "as background takes the current colour where the model "
+                                   "of a background pixel within this many px explains it: "
+                                   "the ghost of an object present when the model began "
+                                   "heals from its edges (0 = off)", low=0, high=31)
 
     def __post_init__(self) -> None:
         check_settings(self)
@@ -80,6 +93,9 @@ class CompensatedBackground:
         self.mean: Optional[np.ndarray] = None  # (H, W, C) float32, 0-255
         self.var: Optional[np.ndarray] = None  # (H, W, C) float32
         self.age: Optional[np.ndarray] = None  # (H, W) float32
+        # (H, W) float32, 1 where the model has learnt the pixel at least once under a mask
+        # that called it background (below 1 at the edges of such areas after a warp).
+        self.seen: Optional[np.ndarray] = None
         # (frame, frame as float, frame - mean, its square or None) from the last score(),
         # reused by update() when it is given the same frame object and the model has not
         # changed since.
@@ -107,6 +123,7 @@ class CompensatedBackground:
         self.mean = f.copy()
         self.var = np.full_like(f, self.config.init_std**2)
         self.age = np.zeros(f.shape[:2], np.float32)
+        self.seen = np.zeros(f.shape[:2], np.float32)
         self._diff = None
 
     def warp(self, matrix: np.ndarray, *, sharp: bool = False) -> None:
@@ -139,6 +156,7 @@ class CompensatedBackground:
         # Age with a zero border: uncovered pixels have no history. Linear interpolation lets
         # a pixel half-inside inherit a lower age, which is the cautious side.
         self.age = warp_image(self.age, matrix, (w, h), cv2.INTER_LINEAR, cv2.BORDER_CONSTANT)
+        self.seen = warp_image(self.seen, matrix, (w, h), cv2.INTER_LINEAR, cv2.BORDER_CONSTANT)
 
     def score(self, frame: np.ndarray) -> np.ndarray:
         """How far ``frame`` is from the background, in units of the decision threshold.
@@ -248,10 +266,18 @@ class CompensatedBackground:
             if fgmask is not None:
                 fg = np.asarray(fgmask).astype(bool)
                 np.copyto(rate, np.float32(p.fg_alpha), where=fg & (self.age >= p.min_age))
+        # Judged on the model before this frame's update.
+        ghost = self._ghost(f, fg) if learning_rate < 0.0 and fgmask is not None else None
         r = _per_channel(rate, d.shape[2])
         d2 = np.multiply(d, d) if sq is None else sq
         d *= r
         self.mean += d
+        if ghost is not None:
+            # The mean takes the frame; the spread learns as foreground (the old content's
+            # difference would inflate it and blind the pixel).
+            y0, x0, heal = ghost
+            crop = self.mean[y0:y0 + heal.shape[0], x0:x0 + heal.shape[1]]
+            crop[heal] = f[y0:y0 + heal.shape[0], x0:x0 + heal.shape[1]][heal]
         # Variance of background pixels only (with the clipped residual): a passing object must
         # not inflate the spread and blind the model.
         np.minimum(d2, np.float32((4.0 * p.init_std) ** 2), out=d2)
@@ -259,8 +285,42 @@ class CompensatedBackground:
         d2 *= r
         self.var += d2
         np.maximum(self.var, np.float32(p.min_std**2), out=self.var)
+        if learning_rate < 0.0 and fgmask is not None:
+            # Only a mask's verdict counts: a frame learnt without one (the first) is unjudged.
+            np.maximum(self.seen, np.float32(1.0), out=self.seen, where=~fg)
         self.age += np.float32(1.0)
         np.minimum(self.age, np.float32(p.max_age), out=self.age)
+
+    def _ghost(self, f: np.ndarray, fg: np.ndarray) -> Optional[tuple]:
+        """``(y0, x0, heal)`` or None for none: ``heal``, a bool window of the frame at
+        (``y0``, ``x0``), marks the pixels of the ``(H, W)`` bool ``fg`` that the model has
+        never seen as background and whose colour in ``f`` ((H, W, C) float32) lies, in every
+        channel, within the decision floor of the range of the background pixels' means (those
+        outside ``fg``) within ``ghost_radius`` px."""
+        p = self.config
+        if p.ghost_radius == 0:
+            return None
+        candidates = fg & (self.seen < 0.5) & (self.age >= p.min_age)
+        rows, cols = np.any(candidates, axis=1), np.any(candidates, axis=0)
+        if not rows.any():
+            return None  # the usual frame, once the start's ghosts have healed
+        # Only the candidates' box, grown by the radius, takes part.
+        r = p.ghost_radius
+        (y0, y1), (x0, x1) = (np.flatnonzero(rows)[[0, -1]], np.flatnonzero(cols)[[0, -1]])
+        y0, x0 = max(y0 - r, 0), max(x0 - r, 0)
+        box = (slice(y0, y1 + r + 1), slice(x0, x1 + r + 1))
+        mean, outside, here = self.mean[box], (~fg[box]).view(np.uint8), f[box]
+        k = np.ones((2 * r + 1, 2 * r + 1), np.uint8)
+        floor = np.float32(max(p.min_diff, p.k_sigma * p.min_std))
+        # Foreground pixels take no part in the range: far out of it, min and max skip them.
+        lo = cv2.copyTo(mean, outside, np.full_like(mean, 1e6))
+        lo = cv2.erode(lo, k)
+        lo -= floor
+        hi = cv2.copyTo(mean, outside, np.full_like(mean, -1e6))
+        hi = cv2.dilate(hi, k)
+        hi += floor
+        inside = cv2.inRange(here, lo, hi) > 0  # every channel within its bounds
+        return y0, x0, candidates[box] & inside
 
     def sensitive(self, *, within: float) -> np.ndarray:
         """``(H, W) bool``: pixels whose decision threshold (``k_sigma`` standard deviations, at

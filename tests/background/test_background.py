@@ -106,6 +106,46 @@ def test_object_on_static_background_is_found():
     assert np.count_nonzero(mask) < 1.3 * 30 * 40
 
 
+def _learn(bg, frame, updates):
+    """``updates`` frames of ``frame`` as the engines learn them: foreground where it differs."""
+    for _ in range(updates):
+        bg.update(frame, bg.score(frame) > 1)
+    return bg.score(frame)
+
+
+@pytest.mark.parametrize("radius, shows, healed", [
+    (6, "background", True),    # the ghost heals from its edges, up to 6 px per frame
+    (0, "background", False),   # off: the ghost stays (it learns at fg_alpha)
+    (6, "other", False),        # what is uncovered matches no background around it
+])
+def test_the_ghost_of_an_object_present_at_the_start_heals(radius, shows, healed):
+    background = _view(_scene(), 0) // 4 + 100  # a gently varying, colourless-ish scene
+    start = background.copy()
+    start[40:80, 60:100] = (20, 240, 20)  # an object when the model began
+    now = background.copy()  # it has left: the background shows ...
+    if shows == "other":
+        now[40:80, 60:100] = (250, 60, 60)  # ... or something unlike it
+    bg = CompensatedBackground(BackgroundConfig(ghost_radius=radius))
+    bg.reset(start)
+    bg.update(start)
+    score = _learn(bg, now, 8)  # 20 px from the ghost's edges to its centre
+    assert (score[40:80, 60:100].max() < 1) == healed
+
+
+@pytest.mark.parametrize("seen", [True, False])
+def test_an_object_over_background_the_model_has_seen_is_not_healed(seen):
+    background = np.full((60, 80, 3), 60, np.uint8)
+    background[:, 40:] = 180
+    bg = CompensatedBackground(BackgroundConfig(ghost_radius=6))
+    bg.reset(background)
+    if seen:
+        bg.update(background, np.zeros(background.shape[:2], bool))  # all called background
+    now = background.copy()
+    now[20:40, 30:40] = 180  # the colour of the background just right of it
+    score = _learn(bg, now, 5)
+    assert (score[20:40, 30:40].min() > 1) == seen
+
+
 def test_a_pixel_is_sensitive_where_its_threshold_is_within_the_limit():
     model = CompensatedBackground(BackgroundConfig(k_sigma=2.0, min_diff=10.0))
     frame = np.zeros((4, 6, 3), np.uint8)

@@ -31,7 +31,8 @@ from bgsub.errors import InputError
 from bgsub.motion.global_motion import apply_homography
 from bgsub.settings import check_settings, setting
 
-__all__ = ["FusionConfig", "Fusion", "flow_violation_map", "fuse_masks", "clean_mask"]
+__all__ = ["FusionConfig", "Fusion", "flow_violation_map", "fuse_masks", "clean_mask",
+           "persistent_blobs"]
 
 
 @dataclass(frozen=True)
@@ -63,6 +64,10 @@ class FusionConfig:
     heal_below: float = setting(0.25, "background differences where the local motion agrees "
                                       "with the camera (violation below this) are learnt at "
                                       "the normal rate (ghost healing)", low=0)
+    persist: int = setting(4, "a blob is kept only if it overlaps the previous frame's mask, "
+                              "moved by the camera and grown by this many working-size px "
+                              "(0 = off): what flickers for one frame is not an object", low=0,
+                           high=64)
 
     def __post_init__(self) -> None:
         check_settings(self)
@@ -278,6 +283,43 @@ def clean_mask(mask: np.ndarray, *, min_area: int = 30, close: int = 5,
         _fill_holes(m, fill_holes)
     m *= 255
     return m
+
+
+def persistent_blobs(mask: np.ndarray, previous: np.ndarray, matrix: np.ndarray, *,
+                     radius: int) -> np.ndarray:
+    """The blobs of ``mask`` that overlap ``previous`` moved into this frame.
+
+    Parameters
+    ----------
+    mask : (H, W) uint8, 0/255
+        This frame's mask.
+    previous : (H, W) uint8, 0/255
+        The previous frame's mask, before this filter (else an object dropped once would be
+        dropped for ever).
+    matrix : (3, 3) float64
+        The camera motion, previous -> current frame.
+    radius : int
+        ``previous`` is grown by this many pixels: how far an object may move against the
+        camera from one frame to the next and still be the same blob.
+
+    Returns
+    -------
+    (H, W) uint8, 0/255: ``mask`` less its blobs (8-connected) that nothing in ``previous``
+    touches. Water glints, a misregistered edge or a ghost's flicker last one frame; an object
+    that stays is there in both.
+    """
+    if not cv2.countNonZero(mask):
+        return mask
+    h, w = mask.shape
+    moved = cv2.warpPerspective(previous, np.asarray(matrix, np.float64), (w, h),
+                                flags=cv2.INTER_NEAREST, borderValue=0)
+    if radius > 0:
+        moved = cv2.dilate(moved, _kernel(cv2.MORPH_ELLIPSE, 2 * radius + 1))
+    n, labels = cv2.connectedComponents(mask, connectivity=8)
+    kept = np.zeros(n, bool)
+    kept[labels[(moved > 0) & (mask > 0)]] = True
+    kept[0] = False
+    return np.where(kept[labels], mask, np.uint8(0))
 
 
 def _fill_holes(m: np.ndarray, max_area: int) -> None:

@@ -17,8 +17,9 @@ Each frame, at the working size (``work_width``; the mask is returned at the inp
 4. a new shot restarts the model (:class:`~bgsub.engines.parts.SceneCut`);
 5. while the camera is still, a never-warped sample model's score replaces the compensated
    one's (:class:`~bgsub.engines.parts.StillCameraSwitch`);
-6. fusion and clean-up give the mask; the model's update is deferred to the next frame, where
-   it runs in the second thread (``overlap=1``) beside the front end.
+6. fusion and clean-up give the mask, less the blobs that touch nothing of the last frame's
+   (:class:`~bgsub.engines.parts.BlobPersistence`); the model's update is deferred to the next
+   frame, where it runs in the second thread (``overlap=1``) beside the front end.
 
 Frames that cannot be processed normally (blank, textureless, a scene cut) never raise: they
 return an empty mask (or, for a scene cut, restart the model) and say why in ``last_status``.
@@ -38,9 +39,9 @@ from bgsub.engines.base import (Engine, Param, check_fgmask, check_frame, check_
 from bgsub.engines.config import (MIN_WORK_WIDTH, CameraConfig, EngineConfig,
                                   engine_params, stage_configs)
 from bgsub.engines.frontend import NO_MOTION, CameraFit, MotionFrontEnd, MotionResult
-from bgsub.engines.parts import (KNOWN_MOTION_HELP, FrozenModelRegistration, KnownMotion,
-                                 MotionHoldBack, SceneCut, SmallRegionRule, StillCameraSwitch,
-                                 work_scale)
+from bgsub.engines.parts import (KNOWN_MOTION_HELP, BlobPersistence, FrozenModelRegistration,
+                                 KnownMotion, MotionHoldBack, SceneCut, SmallRegionRule,
+                                 StillCameraSwitch, work_scale)
 from bgsub.engines.threads import SecondThread, limited_threads
 from bgsub.errors import InputError
 from bgsub.io.flowio import add_colour_wheel, draw_flow_arrows
@@ -99,7 +100,7 @@ class MovingCameraEngine(Engine):
     frontend, config, camera, bg, fusion
         The front end, the engine's and the camera stage's settings, the compensated
         background model and the fusion stage.
-    small_region, hold_back, registration, scene_cut, still_switch, known_motion
+    small_region, hold_back, registration, scene_cut, persistence, still_switch, known_motion
         The special behaviours (:mod:`bgsub.engines.parts`; ``still_switch`` None when
         ``still_model`` is 0, ``known_motion`` None when the camera motion is fitted). The
         region of interest (``roi``, :mod:`bgsub.engines.roi`) also leaves the vectors outside
@@ -124,6 +125,7 @@ class MovingCameraEngine(Engine):
         self.hold_back = MotionHoldBack(cam.still_below)
         self.registration = FrozenModelRegistration(cam.motion_model)
         self.scene_cut = SceneCut(c.scene_cut, c.cut_support)
+        self.persistence = BlobPersistence(self.fusion.config.persist)
         self.still_switch = (StillCameraSwitch(still_model=c.still_model, still_snr=c.still_snr,
                                                window=c.still_window,
                                                still_versus=c.still_versus)
@@ -214,7 +216,7 @@ class MovingCameraEngine(Engine):
             still_score = self.still_switch.judge(work, result, compensated=self.bg,
                                                  compensated_score=score)
             score = score if still_score is None else still_score
-        mask = self.fusion.mask(score, violation)
+        mask = self.persistence.filter(self.fusion.mask(score, violation), matrix)
         self._pending = (work, self.fusion.learn_slowly(mask, violation), rate)
         self._prev, self._prev_gray = cur, gray
         self._prev_work = work
@@ -301,6 +303,7 @@ class MovingCameraEngine(Engine):
 
     def _restart(self, work: np.ndarray, gray: np.ndarray, cur: Any = None) -> None:
         self._pending = None
+        self.persistence.reset()
         self.bg.reset(work)
         self.bg.update(work)
         if self.still_switch is not None:

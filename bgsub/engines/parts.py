@@ -5,6 +5,8 @@
 * :class:`FrozenModelRegistration`: a frozen model (``learning_rate=0``) is registered to the
   frame, so the errors of the frame-to-frame motions do not add up;
 * :class:`SceneCut`: a new shot restarts the model;
+* :class:`BlobPersistence`: a blob new in this frame, touching nothing of the last mask, is
+  dropped (one frame's flicker is not an object);
 * :class:`StillCameraSwitch`: while the camera is still, a never-warped sample model replaces
   the compensated one in the fusion (water and foam defeat a mean-and-variance model, and their
   drift would be taken for a pan);
@@ -22,6 +24,7 @@ import cv2
 import numpy as np
 
 from bgsub.background.compensated import CompensatedBackground
+from bgsub.background.fusion import persistent_blobs
 from bgsub.background.sample import SampleBackground
 from bgsub.engines.frontend import NO_MOTION, MotionResult
 from bgsub.errors import InputError
@@ -29,8 +32,8 @@ from bgsub.motion.global_motion import (GlobalMotion, apply_homography, corner_d
                                         fit_global_motion)
 
 __all__ = ["SMALL_REGION", "spans_frame", "SmallRegionRule", "MotionHoldBack",
-           "FrozenModelRegistration", "SceneCut", "StillCameraSwitch", "motion_snr",
-           "KnownMotion", "KNOWN_MOTION_HELP", "work_scale"]
+           "FrozenModelRegistration", "SceneCut", "BlobPersistence", "StillCameraSwitch",
+           "motion_snr", "KnownMotion", "KNOWN_MOTION_HELP", "work_scale"]
 
 
 def _translation(dx: float, dy: float) -> np.ndarray:
@@ -260,6 +263,29 @@ class SceneCut:
 
 
 # ---------------------------------------------------------------------- still-camera switch
+
+class BlobPersistence:
+    """A blob of the mask must overlap the previous frame's mask, moved by the camera and grown
+    by ``radius`` px (:func:`~bgsub.background.fusion.persistent_blobs`; ``radius`` 0 = off).
+    The first mask after a (re)start has nothing to overlap and is kept whole."""
+
+    def __init__(self, radius: int) -> None:
+        self.radius = int(radius)
+        self._previous: Optional[np.ndarray] = None  # the last mask before this filter
+
+    def reset(self) -> None:
+        self._previous = None
+
+    def filter(self, mask: np.ndarray, matrix: np.ndarray) -> np.ndarray:
+        """``mask`` ((h, w) uint8 0/255) less its blobs new since the last frame; ``matrix``
+        (3, 3) is the camera motion from that frame."""
+        if self.radius <= 0:
+            return mask
+        previous, self._previous = self._previous, mask
+        if previous is None or previous.shape != mask.shape:
+            return mask
+        return persistent_blobs(mask, previous, matrix, radius=self.radius)
+
 
 def motion_snr(result: MotionResult, *, min_vectors: int = 8) -> float:
     """How far the fitted camera motion stands out of the motion vectors' disagreement with it:

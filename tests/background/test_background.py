@@ -8,7 +8,7 @@ import pytest
 from bgsub.errors import InputError, describe_shape
 from bgsub.background.compensated import BackgroundConfig, CompensatedBackground
 from bgsub.background.evidence import motion_evidence_map
-from bgsub.background.fusion import clean_mask, flow_violation_map, fuse_masks
+from bgsub.background.fusion import clean_mask, flow_violation_map, fuse_masks, persistent_blobs
 
 
 def _scene(h=120, w=160, seed=0):
@@ -372,3 +372,25 @@ def test_fuse_masks_refuses_a_violation_map_of_another_shape():
     with pytest.raises(InputError, match=r"violation map has shape \(30, 41\)"):
         fuse_masks(np.zeros((30, 40), np.float32), np.zeros((30, 41), np.float32),
                    flow_boost=1.0)
+
+
+def _blobs(*boxes, shape=(60, 80)):
+    mask = np.zeros(shape, np.uint8)
+    for y, x in boxes:
+        mask[y:y + 10, x:x + 10] = 255
+    return mask
+
+
+def test_persistent_blobs_drops_only_a_blob_new_in_this_frame():
+    previous = _blobs((10, 10))
+    mask = _blobs((12, 13), (40, 60))  # the first blob moved 3 px; the second is new
+    kept = persistent_blobs(mask, previous, np.eye(3), radius=4)
+    assert np.array_equal(kept, _blobs((12, 13)))
+
+
+def test_persistent_blobs_follows_the_camera():
+    previous = _blobs((10, 10))
+    pan = np.array([[1.0, 0, 30], [0, 1, 0], [0, 0, 1]])  # the camera moved 30 px
+    mask = _blobs((10, 40))
+    assert np.array_equal(persistent_blobs(mask, previous, pan, radius=2), mask)
+    assert not persistent_blobs(mask, previous, np.eye(3), radius=2).any()

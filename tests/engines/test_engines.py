@@ -4,7 +4,7 @@ same words, before the engine changes."""
 import numpy as np
 import pytest
 
-from bgsub.engines import available_engines, create_engine
+from bgsub.engines import available_engines, create_engine, get_engine_spec
 from bgsub.errors import InputError
 
 # The built-in engines (other test modules register engines of their own).
@@ -177,7 +177,10 @@ def test_the_learning_rate_parameter_is_the_default_of_apply(name):
 @pytest.mark.parametrize("name", ENGINES)
 def test_learning_rate_one_restarts_from_the_frame(name):
     frames, square = _static_with_square(20, 1)
-    engine = create_engine(name)
+    # The square's absence below shows in one frame only, which the moving-camera engines'
+    # blob persistence would hold back a frame; that is not what is tested here.
+    moving = "persist" in get_engine_spec(name).params
+    engine = create_engine(name, **({"persist": 0} if moving else {}))
     for frame in frames[:20]:
         engine.apply(frame)
     engine.apply(frames[-1], learning_rate=1.0)  # the model is now this frame alone ...

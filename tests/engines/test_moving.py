@@ -149,6 +149,18 @@ def test_the_ghost_of_an_object_there_from_the_start_heals(radius, ghost_stays):
     assert (np.count_nonzero(mask & (gt == 0)) > 500) == ghost_stays
 
 
+@pytest.mark.parametrize("persist, flash_found", [(4, False), (0, True)])
+def test_a_one_frame_flash_is_no_object(persist, flash_found):
+    # A glint: a bright patch in one frame only, against a moving square that stays.
+    eng = _engine_with("grbm", persist=persist)
+    for k, (frame, gt) in enumerate(_ghost_clip(n=12)):
+        if k == 11:
+            frame[10:40, 150:190] = 255
+        mask = eng.apply(frame) > 0
+    assert mask[10:40, 150:190].any() == flash_found
+    assert (mask & (gt > 0)).sum() > 0.95 * (gt > 0).sum()  # the square is kept either way
+
+
 def _over_blank(n=14, h=180, w=240, *, ramp=False):
     """A still camera over a blank, slightly noisy background (or, with ``ramp``, a noisy
     left-to-right gray ramp), and the only texture in the frame: a square moving 3 px per frame

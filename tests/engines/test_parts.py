@@ -15,8 +15,8 @@ from bgsub.engines.config import STAGES, CameraConfig, EngineConfig, stage_confi
 from bgsub.engines.frontend import NO_MOTION, MotionResult
 from bgsub.engines.frontends.grbm import GRBM_TUNED
 from bgsub.background.compensated import CompensatedBackground
-from bgsub.engines.parts import (SMALL_REGION, MotionHoldBack, SceneCut, SmallRegionRule,
-                                 StillCameraSwitch)
+from bgsub.engines.parts import (SMALL_REGION, BlobPersistence, MotionHoldBack, SceneCut,
+                                 SmallRegionRule, StillCameraSwitch)
 from bgsub.engines.threads import SecondThread
 from bgsub.errors import InputError
 from bgsub.motion.global_motion import GlobalMotion
@@ -249,3 +249,25 @@ def test_stage_configs_take_values_then_a_front_ends_defaults():
     stages = stage_configs({"threshold": 2.0, "unrelated": 1}, {"flow_boost": 1.5})
     assert stages[FusionConfig] == FusionConfig(threshold=2.0, flow_boost=1.5)
     assert stages[EngineConfig] == EngineConfig()
+
+
+def _square_at(x, shape=(50, 60)):
+    mask = np.zeros(shape, np.uint8)
+    mask[20:30, x:x + 10] = 255
+    return mask
+
+
+def test_blob_persistence_keeps_the_first_mask_and_what_stays():
+    part = BlobPersistence(3)
+    first = _square_at(5)
+    assert np.array_equal(part.filter(first, np.eye(3)), first)  # nothing to overlap yet
+    assert np.array_equal(part.filter(_square_at(7), np.eye(3)), _square_at(7))
+    assert not part.filter(_square_at(40), np.eye(3)).any()  # far from the last mask: new
+    part.reset()
+    assert np.array_equal(part.filter(_square_at(40), np.eye(3)), _square_at(40))
+
+
+def test_blob_persistence_radius_0_changes_nothing():
+    part = BlobPersistence(0)
+    part.filter(_square_at(5), np.eye(3))
+    assert np.array_equal(part.filter(_square_at(40), np.eye(3)), _square_at(40))

@@ -77,7 +77,7 @@ def _to_input(img: np.ndarray, in_shape: tuple, *, binary: bool = False) -> np.n
     if img.shape[:2] == (h, w):
         return img
     up = cv2.resize(img, (w, h), interpolation=cv2.INTER_LINEAR)
-    if binary:  # (> 127 -> 255, else 0; in uint8, not through numpy's int64 np.where)
+    if binary:  # > 127 -> 255, else 0, in place
         cv2.threshold(up, 127, 255, cv2.THRESH_BINARY, dst=up)
     return up
 

@@ -262,8 +262,6 @@ class SceneCut:
         return (changed > self.scene_cut and support < self.cut_support) or changed > 0.8
 
 
-# ---------------------------------------------------------------------- still-camera switch
-
 class BlobPersistence:
     """A blob of the mask must overlap the previous frame's mask, moved by the camera and grown
     by ``radius`` px (:func:`~bgsub.background.fusion.persistent_blobs`; ``radius`` 0 = off).
@@ -286,6 +284,8 @@ class BlobPersistence:
             return mask
         return persistent_blobs(mask, previous, matrix, radius=self.radius)
 
+
+# ---------------------------------------------------------------------- still-camera switch
 
 def motion_snr(result: MotionResult, *, min_vectors: int = 8) -> float:
     """How far the fitted camera motion stands out of the motion vectors' disagreement with it:

@@ -279,7 +279,8 @@ class BlobPersistence:
         (3, 3) is the camera motion from that frame."""
         if self.radius <= 0:
             return mask
-        previous, self._previous = self._previous, mask
+        # A copy: the engine may hand this very array to the caller, who may draw on it.
+        previous, self._previous = self._previous, mask.copy()
         if previous is None or previous.shape != mask.shape:
             return mask
         return persistent_blobs(mask, previous, matrix, radius=self.radius)

@@ -271,3 +271,10 @@ def test_blob_persistence_radius_0_changes_nothing():
     part = BlobPersistence(0)
     part.filter(_square_at(5), np.eye(3))
     assert np.array_equal(part.filter(_square_at(40), np.eye(3)), _square_at(40))
+
+
+def test_blob_persistence_is_not_changed_by_the_caller_drawing_on_a_mask():
+    part = BlobPersistence(3)
+    returned = part.filter(_square_at(5), np.eye(3))
+    returned[:] = 0  # the caller's array, as apply() returns it at the working size
+    assert np.array_equal(part.filter(_square_at(7), np.eye(3)), _square_at(7))

@@ -24,6 +24,8 @@ where a pixel of ``x`` went in ``y``.
 
 from __future__ import annotations
 
+import contextlib
+import threading
 from typing import Optional, Tuple
 
 import numpy as np
@@ -365,20 +367,36 @@ def precompute(model: GatedRBM, *, max_disp: int) -> None:
 _BLAS_WARM = False
 
 
-def _warm_blas() -> None:
-    """One 512 x 512 float32 matmul, once per process (about 7 ms).
+def _warm_blas(threads: int = 2) -> None:
+    """Put OpenBLAS in its fast state for ``threads`` concurrent callers, once per process: one
+    512 x 512 float32 matmul in each of ``threads`` threads at the same time (about 10 ms).
 
     Measured with numpy's bundled OpenBLAS (0.3.31, Haswell kernels, one thread, on a 2-core
-    EPYC): until some matmul with a large enough second operand has run in the process, every
-    readout-sized matmul (1,131 x 169 by 169 x 200) takes 6.5-7.5 ms; after one, 1.7-2.0 ms,
-    from either thread, with bit-identical results. The readout's own matmuls never trigger
-    the switch. The cause is inside OpenBLAS; the cure costs one matmul.
+    EPYC): a readout-sized matmul (1,131 x 169 by 169 x 200) takes 6.5-7.5 ms until a matmul
+    with a large enough second operand has run, and 1.7-2.0 ms after, with bit-identical
+    results; the readout's own matmuls never make the switch. The state belongs to the buffer
+    OpenBLAS lends a call, and two calls running at once get two buffers: one matmul warms only
+    one, and the engine's second thread (``overlap``) multiplied at 3-7 ms while the calling
+    thread did. Warming as many buffers as the engine has threads cures both.
     """
     global _BLAS_WARM
-    if not _BLAS_WARM:
-        a = np.ones((512, 512), np.float32)
+    if _BLAS_WARM:
+        return
+    a = np.ones((512, 512), np.float32)
+    together = threading.Barrier(threads)
+
+    def multiply() -> None:
+        with contextlib.suppress(threading.BrokenBarrierError):
+            together.wait(timeout=5)
         a @ a
-        _BLAS_WARM = True
+
+    helpers = [threading.Thread(target=multiply, daemon=True) for _ in range(threads - 1)]
+    for helper in helpers:
+        helper.start()
+    multiply()
+    for helper in helpers:
+        helper.join()
+    _BLAS_WARM = True
 
 
 def raw_patch_motion(

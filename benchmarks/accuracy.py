@@ -21,10 +21,15 @@ Usage (minutes; two sequences at a time with ``--jobs 2``)::
     OMP_NUM_THREADS=1 python benchmarks/accuracy.py --set generated --half A -m grbm
     OMP_NUM_THREADS=1 python benchmarks/accuracy.py --set real --half all -m grbm -p flow_boost=1
     OMP_NUM_THREADS=1 python benchmarks/accuracy.py --set generated --oracle-camera -m grbm
+    OMP_NUM_THREADS=1 python benchmarks/accuracy.py --set generated --degrade jpeg=25
 
 The data folder is ``../shared/data`` beside the repository (``BGSUB_DATA`` overrides it).
 ``--oracle-camera`` (generated only) replaces the camera-motion fit by the generator's true
 motion (``meta.json``), which separates the foreground stage's errors from the motion's.
+``--degrade KIND=VALUE`` (folder sets) feeds the engine degraded copies of the frames, the same
+on every run, to see how the figures carry over to poorer footage: ``noise=SIGMA`` (Gaussian,
+gray levels, seeded by the frame number), ``jpeg=QUALITY`` (re-encoded), ``soft=F`` (shrunk by
+F and enlarged back: softer detail), ``step=N`` (every N-th frame: N times the motion).
 """
 
 from __future__ import annotations
@@ -104,20 +109,57 @@ def temporal_roi(seq: Path, n_frames: int) -> Tuple[int, int]:
     return max(first, 2), last  # the first frame has no history for any method
 
 
+DEGRADATIONS = ("noise", "jpeg", "soft", "step")
+
+
+def parse_degrade(text: str) -> Tuple[str, float]:
+    """``KIND=VALUE`` of ``--degrade`` as ``(kind, value)``, checked."""
+    kind, _, value = text.partition("=")
+    try:
+        number = float(value)
+    except ValueError:
+        number = float("nan")
+    if kind not in DEGRADATIONS or not number > 0:
+        raise argparse.ArgumentTypeError(
+            f"--degrade wants KIND=VALUE with KIND one of {', '.join(DEGRADATIONS)} and a "
+            f"positive VALUE, not {text!r}")
+    if kind == "soft" and number >= 1:
+        raise argparse.ArgumentTypeError("--degrade soft=F shrinks by F: below 1")
+    return kind, number
+
+
+def degrade(image: np.ndarray, kind: str, value: float, k: int) -> np.ndarray:
+    """Frame ``k`` (BGR uint8) degraded by ``kind`` (:data:`DEGRADATIONS`; ``step`` drops
+    frames instead and leaves each frame as it is)."""
+    if kind == "noise":
+        noise = np.random.default_rng(k).normal(0.0, value, image.shape)
+        return np.clip(image + noise, 0, 255).astype(np.uint8)
+    if kind == "jpeg":
+        ok, data = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, int(value)])
+        return cv2.imdecode(data, cv2.IMREAD_COLOR)
+    if kind == "soft":
+        h, w = image.shape[:2]
+        small = cv2.resize(image, (max(1, round(w * value)), max(1, round(h * value))),
+                           interpolation=cv2.INTER_AREA)
+        return cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
+    return image
+
+
 def run_sequence(task: tuple) -> dict:
     """Counts and CPU seconds of one engine over one sequence (or one rendered sample)."""
-    method, params, family, member, oracle = task
+    method, params, family, member, oracle, degraded = task
     t0 = time.process_time()
     engine = create_engine(method, **params)
     if member.count(":") == 1 and not Path(member).exists():
         counts, n = _run_sample(engine, member)
     else:
-        counts, n = _run_folder(engine, Path(member), oracle)
+        counts, n = _run_folder(engine, Path(member), oracle, degraded)
     return dict(family=family, name=Path(member).name, counts=counts, frames=n,
                 cpu=time.process_time() - t0)
 
 
-def _run_folder(engine, seq: Path, oracle: bool) -> Tuple[list, int]:
+def _run_folder(engine, seq: Path, oracle: bool,
+                degraded: Optional[Tuple[str, float]] = None) -> Tuple[list, int]:
     frames = sorted((seq / "input").glob("in*.jpg")) + sorted((seq / "input").glob("in*.png"))
     first, last = temporal_roi(seq, len(frames))
     motions = true_motions(seq) if oracle else None
@@ -129,9 +171,15 @@ def _run_folder(engine, seq: Path, oracle: bool) -> Tuple[list, int]:
         k = int(path.stem[2:])
         if k > last:
             break
+        image = cv2.imread(str(path), cv2.IMREAD_COLOR)
+        if degraded is not None:
+            kind, value = degraded
+            if kind == "step" and (k - 1) % int(value):
+                continue
+            image = degrade(image, kind, value, k)
         if fit is not None:
             fit.matrix = motions[k - 1]
-        mask = engine.apply(cv2.imread(str(path), cv2.IMREAD_COLOR))
+        mask = engine.apply(image)
         if k < first:
             continue
         gt = cv2.imread(str(seq / "groundtruth" / f"gt{k:06d}.png"), cv2.IMREAD_GRAYSCALE)
@@ -185,17 +233,24 @@ def main(argv: Optional[List[str]] = None) -> int:
     ap.add_argument("-m", "--method", default="grbm")
     ap.add_argument("-p", "--param", action="append", default=[], metavar="KEY=VALUE")
     ap.add_argument("--oracle-camera", action="store_true")
+    ap.add_argument("--degrade", type=parse_degrade, metavar="KIND=VALUE",
+                    help="degraded frames: noise=SIGMA, jpeg=QUALITY, soft=F or step=N")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--match", default="", help="only sequences whose path contains this")
     ap.add_argument("--json", help="also write the figures to this file")
     args = ap.parse_args(argv)
     params = parse_params(args.method, args.param)
-    todo = [(args.method, params, fam, m, args.oracle_camera)
+    if args.degrade and (args.set not in ("generated", "real") or
+                         (args.oracle_camera and args.degrade[0] == "step")):
+        ap.error("--degrade needs --set generated or real (and step no --oracle-camera)")
+    todo = [(args.method, params, fam, m, args.oracle_camera, args.degrade)
             for fam, m in sequences(args.set, args.half) if args.match in m]
     with multiprocessing.get_context("fork").Pool(args.jobs) as pool:
         results = pool.map(run_sequence, todo, chunksize=1)
     summary = summarise(args.set, results)
     label = f"{args.method} {args.set}/{args.half} {' '.join(args.param)}".strip()
+    if args.degrade:
+        label += " degraded {}={:g}".format(*args.degrade)
     fams = "  ".join(f"{k} {v:.3f}" for k, v in summary["families"].items())
     print(f"{label}: mean {summary['mean']:.3f} | {fams} | "
           f"{summary['cpu_ms_per_frame']:.1f} ms/frame CPU")

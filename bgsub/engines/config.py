@@ -68,6 +68,11 @@ class EngineConfig:
     overlap: int = setting(1, "1 = update the background and prepare the frame for the next "
                               "pair in a second thread while the motion is measured (same "
                               "masks, faster on 2 or more cores); 0 = one thread", low=0, high=1)
+    smooth: float = setting(0.0, "Gaussian blur (sigma, working px) of each frame before it "
+                                 "is measured and compared: for noisy or heavily compressed "
+                                 "footage, whose pixel noise otherwise reads as motion and as "
+                                 "background differences (1 suits sensor noise of 6 gray "
+                                 "levels or JPEG quality 25; 0 = off)", low=0, high=8)
     min_contrast: float = setting(4.0, "frames whose gray standard deviation is below this are "
                                        "blank or textureless: empty mask, model kept", low=0)
     scene_cut: float = setting(0.5, "restart the model when more than this fraction of the "

@@ -70,6 +70,11 @@ def _to_work(image: np.ndarray, work_width: int) -> np.ndarray:
     return cv2.resize(image, (ww, wh), interpolation=cv2.INTER_AREA)
 
 
+def _smoothed(work: np.ndarray, sigma: float) -> np.ndarray:
+    """``work`` blurred by a Gaussian of ``sigma`` px (a new array), or itself for 0."""
+    return cv2.GaussianBlur(work, (0, 0), sigma) if sigma > 0 else work
+
+
 def _to_input(img: np.ndarray, in_shape: tuple, *, binary: bool = False) -> np.ndarray:
     """``img`` (working size) resized to the input's ``in_shape``; a ``binary`` mask stays
     0/255."""
@@ -164,8 +169,9 @@ class MovingCameraEngine(Engine):
                 # The model keeps the frame past this call (the previous frame of the next pair,
                 # the deferred update): not the caller's buffer, which a reading loop may reuse.
                 work = image.copy()
-            gray = work if work.ndim == 2 else cv2.cvtColor(work, cv2.COLOR_BGR2GRAY)
-            mask = self._step(work, gray, rate)
+            seen = _smoothed(work, self.config.smooth)
+            gray = seen if seen.ndim == 2 else cv2.cvtColor(seen, cv2.COLOR_BGR2GRAY)
+            mask = self._step(seen, gray, rate)
         self._last_frame, self._last_mask = work, mask
         out = _to_input(mask, self._in_shape, binary=True)
         if fgmask is not None:
@@ -182,8 +188,8 @@ class MovingCameraEngine(Engine):
 
     def _step(self, work: np.ndarray, gray: np.ndarray, rate: float) -> np.ndarray:
         """One frame at the working size, the stages of the module docstring: ``work`` is the
-        frame (BGR or gray uint8), ``gray`` its (h, w) uint8 gray image, ``rate`` the checked
-        learning rate. Returns the (h, w) uint8 0/255 mask."""
+        frame (BGR or gray uint8, blurred by ``smooth``), ``gray`` its (h, w) uint8 gray image,
+        ``rate`` the checked learning rate. Returns the (h, w) uint8 0/255 mask."""
         self._last = self._last_matrix = None
         empty = np.zeros(gray.shape, np.uint8)
         if float(cv2.meanStdDev(gray)[1][0, 0]) < self.config.min_contrast:

@@ -161,6 +161,20 @@ def test_a_one_frame_flash_is_no_object(persist, flash_found):
     assert (mask & (gt > 0)).sum() > 0.95 * (gt > 0).sum()  # the square is kept either way
 
 
+def _noisy(clip, sigma, seed=0):
+    """``clip``'s frames with Gaussian sensor noise of ``sigma`` gray levels."""
+    rng = np.random.default_rng(seed)
+    for frame, gt in clip:
+        yield np.clip(frame + rng.normal(0, sigma, frame.shape), 0, 255).astype(np.uint8), gt
+
+
+def test_smoothing_finds_the_square_in_heavy_sensor_noise():
+    # Unsmoothed, noise of 20 gray levels makes most pixels differ from the model: every frame
+    # reads as a scene cut and the mask stays empty.
+    f, statuses = _scored(_engine_with("grbm", smooth=1.0), _noisy(_frames(), 20), skip=3)
+    assert f > 0.7 and statuses == {"ok"}, (f, statuses)
+
+
 def _over_blank(n=14, h=180, w=240, *, ramp=False):
     """A still camera over a blank, slightly noisy background (or, with ``ramp``, a noisy
     left-to-right gray ramp), and the only texture in the frame: a square moving 3 px per frame

@@ -135,7 +135,7 @@ def degrade(image: np.ndarray, kind: str, value: float, k: int) -> np.ndarray:
         noise = np.random.default_rng(k).normal(0.0, value, image.shape)
         return np.clip(image + noise, 0, 255).astype(np.uint8)
     if kind == "jpeg":
-        ok, data = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, int(value)])
+        _, data = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, int(value)])
         return cv2.imdecode(data, cv2.IMREAD_COLOR)
     if kind == "soft":
         h, w = image.shape[:2]

@@ -169,9 +169,10 @@ class MovingCameraEngine(Engine):
                 # The model keeps the frame past this call (the previous frame of the next pair,
                 # the deferred update): not the caller's buffer, which a reading loop may reuse.
                 work = image.copy()
-            seen = _smoothed(work, self.config.smooth)
-            gray = seen if seen.ndim == 2 else cv2.cvtColor(seen, cv2.COLOR_BGR2GRAY)
-            mask = self._step(seen, gray, rate)
+            smoothed = _smoothed(work, self.config.smooth)
+            gray = (smoothed if smoothed.ndim == 2
+                    else cv2.cvtColor(smoothed, cv2.COLOR_BGR2GRAY))
+            mask = self._step(smoothed, gray, rate)
         self._last_frame, self._last_mask = work, mask
         out = _to_input(mask, self._in_shape, binary=True)
         if fgmask is not None:

@@ -156,6 +156,20 @@ def _summary(stats: RunStats, method: str, outputs: List[str]) -> str:
     return text
 
 
+def _smooth_notice(stats: RunStats, method: str, params: dict) -> Optional[str]:
+    """A hint when most frames were taken for scene cuts by an engine that can smooth but did
+    not: grainy or heavily compressed footage makes most pixels differ from any model."""
+    from bgsub.engines.moving import SCENE_CUT
+
+    spec = engines.get_engine_spec(method).params.get("smooth")
+    cuts = stats.statuses.get(SCENE_CUT, 0) if stats.has_status else 0
+    if spec is None or params.get("smooth", spec.default) > 0 or 2 * cuts <= stats.frames:
+        return None
+    return (f"{cuts} of {_plural(stats.frames, 'frame')} were taken for scene cuts (the model "
+            "restarted, the mask empty); if the footage is grainy or heavily compressed, "
+            "--param smooth=1 blurs each frame before it is compared")
+
+
 def _fps_notice(info: VideoInfo, args: argparse.Namespace) -> Optional[str]:
     writes_video = is_video_path(args.output) or args.vis or args.flow_vis
     if info.fps_is_default and writes_video:
@@ -300,6 +314,9 @@ def run(args: argparse.Namespace) -> int:
     _input_notes(args, source, engine)
     written = list(_outputs(args).values())
     common.note(_summary(stats, method, written), quiet=args.quiet)
+    smooth = _smooth_notice(stats, method, params)
+    if smooth:
+        common.note(smooth, quiet=args.quiet)
     for kind, codec in codecs.items():  # which picture videos browsers play
         common.note(common.describe_codec(_outputs(args)[kind], codec), quiet=args.quiet)
     if args.json:

@@ -47,7 +47,10 @@ from bgsub.errors import InputError
 from bgsub.io.flowio import add_colour_wheel, draw_flow_arrows
 from bgsub.motion.global_motion import apply_homography
 
-__all__ = ["MovingCameraEngine", "register_frontend", "work_size", "draw_debug"]
+__all__ = ["MovingCameraEngine", "register_frontend", "work_size", "draw_debug", "SCENE_CUT"]
+
+#: ``last_status`` of a frame taken for a new shot (the model restarts from it).
+SCENE_CUT = "fallback: scene cut"
 
 
 def work_size(width: int, height: int, work_width: int) -> tuple:
@@ -216,7 +219,7 @@ class MovingCameraEngine(Engine):
             unseen = unseen | ~self.roi.at(gray.shape)
         if self.scene_cut.is_cut(score, unseen, result):
             self._restart(work, gray, cur)
-            self.last_status = "fallback: scene cut"
+            self.last_status = SCENE_CUT
             return empty
         self._last_matrix = applied
         if self.still_switch is not None:

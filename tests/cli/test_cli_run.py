@@ -18,6 +18,7 @@ import pytest
 from bgsub import engines
 from bgsub.cli import main
 from bgsub.engines import Engine, Param, register_engine
+from bgsub.engines.moving import SCENE_CUT
 from bgsub.io.sources import open_source
 
 W, H, N = 80, 60, 20
@@ -90,6 +91,18 @@ class _Killed(_Interrupting):
 register_engine("_test_killed", "test: SIGTERM at a frame",
                 params={"at": Param(5, "frame")})(_Killed)
 register_engine("_test_draw", "test: debug_image and last_status")(_Drawing)
+
+
+class _Cutting(_FrameDiff):
+    """Takes every frame for a scene cut unless ``smooth`` > 0 (as grainy footage does)."""
+
+    def __init__(self, smooth: float) -> None:
+        super().__init__(30)
+        self.last_status = "ok" if smooth > 0 else SCENE_CUT
+
+
+register_engine("_test_cuts", "test: every frame a scene cut",
+                params={"smooth": Param(0.0, "blur")})(_Cutting)
 
 
 class _InterruptedDrawing(_Drawing):
@@ -456,6 +469,13 @@ def test_an_empty_method_is_refused_not_the_default(tmp_path, clip, capsys, name
     code, err = _run(capsys, clip, "-o", tmp_path / "m.mkv", "--method", name)
     assert code == 2 and "--method is empty" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "m.mkv").exists()
+
+
+@pytest.mark.parametrize("smooth, hinted", [("0", True), ("1", False)])
+def test_frames_taken_for_scene_cuts_suggest_smoothing(tmp_path, clip, capsys, smooth, hinted):
+    code, err = _run(capsys, clip, "-o", tmp_path / "m.mkv", "-m", "_test_cuts", "--stop", "4",
+                     "-p", f"smooth={smooth}")
+    assert code == 0 and ("--param smooth=1" in err) == hinted, err
 
 
 def test_summary_of_one_frame_and_of_frames_all_ok(tmp_path, clip, capsys):

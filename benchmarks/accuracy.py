@@ -29,7 +29,9 @@ motion (``meta.json``), which separates the foreground stage's errors from the m
 ``--degrade KIND=VALUE`` (folder sets) feeds the engine degraded copies of the frames, the same
 on every run, to see how the figures carry over to poorer footage: ``noise=SIGMA`` (Gaussian,
 gray levels, seeded by the frame number), ``jpeg=QUALITY`` (re-encoded), ``soft=F`` (shrunk by
-F and enlarged back: softer detail), ``step=N`` (every N-th frame: N times the motion).
+F and enlarged back: softer detail), ``step=N`` (every N-th frame: N times the motion),
+``orbit=V`` (an added camera motion of V px a frame around a circle of ``ORBIT_RADIUS`` px,
+frames and ground truth cropped by the radius: slow pans of every direction).
 """
 
 from __future__ import annotations
@@ -109,7 +111,9 @@ def temporal_roi(seq: Path, n_frames: int) -> Tuple[int, int]:
     return max(first, 2), last  # the first frame has no history for any method
 
 
-DEGRADATIONS = ("noise", "jpeg", "soft", "step")
+DEGRADATIONS = ("noise", "jpeg", "soft", "step", "orbit")
+#: Radius (px) of the circle ``--degrade orbit=V`` moves the view around.
+ORBIT_RADIUS = 16
 
 
 def parse_degrade(text: str) -> Tuple[str, float]:
@@ -142,7 +146,20 @@ def degrade(image: np.ndarray, kind: str, value: float, k: int) -> np.ndarray:
         small = cv2.resize(image, (max(1, round(w * value)), max(1, round(h * value))),
                            interpolation=cv2.INTER_AREA)
         return cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
+    if kind == "orbit":
+        return _orbit(image, value, k, cv2.INTER_LINEAR)
     return image
+
+
+def _orbit(image: np.ndarray, speed: float, k: int, interpolation: int) -> np.ndarray:
+    """Frame ``k``'s view moved to angle ``k * speed / ORBIT_RADIUS`` on the circle, cropped by
+    the radius on every side (``interpolation`` nearest for ground truth)."""
+    r = ORBIT_RADIUS
+    angle = k * speed / r
+    h, w = image.shape[:2]
+    shift = np.float32([[1, 0, r + r * np.cos(angle)], [0, 1, r + r * np.sin(angle)]])
+    return cv2.warpAffine(image, shift, (w - 2 * r, h - 2 * r),
+                          flags=interpolation | cv2.WARP_INVERSE_MAP)
 
 
 def run_sequence(task: tuple) -> dict:
@@ -183,6 +200,8 @@ def _run_folder(engine, seq: Path, oracle: bool,
         if k < first:
             continue
         gt = cv2.imread(str(seq / "groundtruth" / f"gt{k:06d}.png"), cv2.IMREAD_GRAYSCALE)
+        if gt is not None and degraded is not None and degraded[0] == "orbit":
+            gt = _orbit(gt, degraded[1], k, cv2.INTER_NEAREST)
         if gt is not None:
             c = count_frame(mask, gt)
             counts += (c.tp, c.fp, c.fn, c.tn)
@@ -234,15 +253,15 @@ def main(argv: Optional[List[str]] = None) -> int:
     ap.add_argument("-p", "--param", action="append", default=[], metavar="KEY=VALUE")
     ap.add_argument("--oracle-camera", action="store_true")
     ap.add_argument("--degrade", type=parse_degrade, metavar="KIND=VALUE",
-                    help="degraded frames: noise=SIGMA, jpeg=QUALITY, soft=F or step=N")
+                    help="degraded frames: noise=SIGMA, jpeg=QUALITY, soft=F, step=N or orbit=V")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--match", default="", help="only sequences whose path contains this")
     ap.add_argument("--json", help="also write the figures to this file")
     args = ap.parse_args(argv)
     params = parse_params(args.method, args.param)
     if args.degrade and (args.set not in ("generated", "real") or
-                         (args.oracle_camera and args.degrade[0] == "step")):
-        ap.error("--degrade needs --set generated or real (and step no --oracle-camera)")
+                         (args.oracle_camera and args.degrade[0] in ("step", "orbit"))):
+        ap.error("--degrade needs --set generated or real (and step or orbit no --oracle-camera)")
     todo = [(args.method, params, fam, m, args.oracle_camera, args.degrade)
             for fam, m in sequences(args.set, args.half) if args.match in m]
     with multiprocessing.get_context("fork").Pool(args.jobs) as pool:

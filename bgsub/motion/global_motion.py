@@ -25,8 +25,11 @@ from bgsub.settings import check_settings, setting
 __all__ = [
     "CameraMotionConfig",
     "GlobalMotion",
+    "AUTO",
+    "FIT_MODELS",
     "MODELS",
     "fit_global_motion",
+    "simplest_model",
     "apply_homography",
     "corner_error",
     "is_identity",
@@ -36,7 +39,17 @@ __all__ = [
 #: Motion models, from the most to the least general.
 MODELS = ("homography", "affine", "similarity", "translation")
 
-_MIN_POINTS = {"homography": 4, "affine": 3, "similarity": 2, "translation": 1}
+#: The camera fit's choice per frame: the least general model that explains the
+#: correspondences about as well as a homography (:func:`simplest_model`).
+AUTO = "auto"
+#: What a camera fit may be asked for: :data:`AUTO` or one of :data:`MODELS`.
+FIT_MODELS = (AUTO,) + MODELS
+
+_MIN_POINTS = {"homography": 4, "affine": 3, "similarity": 2, "translation": 1, AUTO: 4}
+#: px: no reading of a patch's motion is more precise than this (the floor of GRIC's scale).
+_FINEST_READING = 0.05
+#: Free parameters of each model (GRIC's complexity term).
+_PARAMETERS = {"homography": 8, "affine": 6, "similarity": 4, "translation": 2}
 
 
 @dataclass
@@ -205,8 +218,10 @@ def fit_global_motion(
     weights : (N,) float, optional
         Reliability per correspondence (e.g. confidence x texture). Correspondences with weight
         ``<= min_weight`` are dropped and at most ``max_points`` of the heaviest are used.
-    model : {"homography", "affine", "similarity", "translation"}
-        Degrees of freedom: 8, 6, 4 (rotation, uniform scale, shift) or 2.
+    model : {"auto", "homography", "affine", "similarity", "translation"}
+        Degrees of freedom: 8, 6, 4 (rotation, uniform scale, shift) or 2; ``"auto"`` fits a
+        homography and keeps the least general model that explains its inliers about as well
+        (:func:`simplest_model`).
     threshold : float
         RANSAC inlier distance in pixels (of ``dst``), > 0.
     min_weight : float
@@ -242,7 +257,8 @@ def fit_global_motion(
     need = max(min_points, _MIN_POINTS[model])
     if len(idx) < need:
         return GlobalMotion.identity(n, ok=False, reason="too few correspondences")
-    matrix, mask = _ransac(src[idx], dst[idx], model=model, threshold=threshold,
+    general = "homography" if model == AUTO else model
+    matrix, mask = _ransac(src[idx], dst[idx], model=general, threshold=threshold,
                            max_iters=max_iters, confidence=confidence)
     if matrix is None or mask is None:
         return GlobalMotion.identity(n, ok=False, reason="degenerate fit")
@@ -260,15 +276,104 @@ def fit_global_motion(
         why = _sane(matrix, None, None, np.inf)
     if why:
         return GlobalMotion(np.eye(3), np.zeros(n, bool), False, why)
+    if model == AUTO:
+        _, matrix = simplest_model(src[idx], dst[idx], matrix, inl[idx])
+        inl[idx] = _within(*(dst[idx] - apply_homography(matrix, src[idx])).T, threshold)
     return GlobalMotion(matrix, inl, True, "ok")
+
+
+def simplest_model(src: np.ndarray, dst: np.ndarray, homography: np.ndarray,
+                   inliers: np.ndarray) -> tuple:
+    """The least general motion model that explains the correspondences about as well as
+    ``homography``, by Torr's geometric robust information criterion (GRIC).
+
+    A homography's eight parameters fit the reading noise of correspondences that cover the
+    frame unevenly (a tower and a rocket against a blank sky): the zoom and perspective it
+    invents move the frame's corners by a pixel while the camera is still or panning slowly.
+    Each simpler model is fitted by least squares to the homography's inliers, and each model
+    scores ``sum(min(e^2 / sigma^2, 4)) + ln(4 n) k`` over all ``n`` correspondences (``e``:
+    its residual; ``k``: its parameters; ``sigma``: the homography inliers' robust residual
+    scale; the cap and the penalty are GRIC's for a 2D-to-2D map, not tuned here).
+
+    Parameters
+    ----------
+    src, dst : (N, 2) float
+        Correspondences (previous frame -> current frame), N >= 4.
+    homography : (3, 3) float64
+        RANSAC's homography.
+    inliers : (N,) bool
+        Its inliers (at least one).
+
+    Returns
+    -------
+    (name, matrix): one of :data:`MODELS` and its ``(3, 3) float64`` matrix.
+    """
+    s = np.asarray(src, np.float64).reshape(-1, 2)
+    d = np.asarray(dst, np.float64).reshape(-1, 2)
+    inl = np.asarray(inliers, bool)
+    fits = {"homography": np.asarray(homography, np.float64),
+            **_least_squares_fits(s[inl], d[inl])}
+    points = np.column_stack([s, np.ones(len(s))])
+    errors = {name: _squared_residuals(m, points, d) for name, m in fits.items()}
+    # Median of a 2D Gaussian residual's squared length: 2 ln 2 sigma^2.
+    typical = _column_median(errors["homography"][inl, None])[0]
+    sigma2 = max(typical / (2.0 * math.log(2.0)), _FINEST_READING ** 2)
+    penalty = math.log(4.0 * len(s))
+    scores = {name: float(np.minimum(e, 4.0 * sigma2).sum()) / sigma2
+              + penalty * _PARAMETERS[name] for name, e in errors.items()}
+    best = min(fits, key=lambda name: (scores[name], _PARAMETERS[name]))
+    return best, fits[best]
+
+
+def _least_squares_fits(s: np.ndarray, d: np.ndarray) -> dict:
+    """Affine, similarity and translation least-squares fits ``(3, 3) float64`` of the
+    ``(K, 2) float64`` correspondences ``s -> d``, K >= 1 (affine from points that span an
+    area, similarity from 2 distinct ones; translation, the median shift, from 1)."""
+    k = len(s)
+    z = np.column_stack([s, d])
+    mean = z.mean(axis=0)
+    zc = z - mean
+    # Centred second moments of (x, y, x', y'): all the two fits need, in one product.
+    (xx, xy, xu, xv), (_, yy, yu, yv) = (zc.T @ zc)[:2].tolist()
+    ms, md = mean[:2], mean[2:]
+    fits = {}
+    det = xx * yy - xy * xy
+    if k >= 3 and det > 1e-9 * (xx + yy) ** 2:  # (the points span an area)
+        linear = np.array([[xu * yy - yu * xy, yu * xx - xu * xy],
+                           [xv * yy - yv * xy, yv * xx - xv * xy]]) / det
+        fits["affine"] = _matrix(linear, md - linear @ ms)
+    if xx + yy > 0:
+        # x' = a x - b y + tx, y' = b x + a y + ty: closed form about the centroids.
+        a, b = (xu + yv) / (xx + yy), (xv - yu) / (xx + yy)
+        linear = np.array([[a, -b], [b, a]])
+        fits["similarity"] = _matrix(linear, md - linear @ ms)
+    fits["translation"] = _matrix(np.eye(2), _column_median(d - s))
+    return fits
+
+
+def _matrix(linear: np.ndarray, shift: np.ndarray) -> np.ndarray:
+    """The ``(3, 3) float64`` matrix of ``x -> linear x + shift``."""
+    m = np.eye(3)
+    m[:2, :2] = linear
+    m[:2, 2] = shift
+    return m
+
+
+def _squared_residuals(matrix: np.ndarray, points: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """(K,) float64: squared distance of ``d`` ``(K, 2)`` from the homogeneous ``(K, 3)``
+    ``points`` moved by ``matrix``."""
+    moved = points @ matrix.T
+    e = d - moved[:, :2] / moved[:, 2:]
+    return np.einsum("ij,ij->i", e, e)
 
 
 def _checked(src: np.ndarray, dst: np.ndarray, weights: Optional[np.ndarray], *, model: str,
              threshold: float) -> tuple:
     """``(src, dst)`` as ``(N, 2) float32``; :class:`InputError` for what
     :func:`fit_global_motion` cannot take."""
-    if model not in MODELS:
-        raise InputError(f"motion model must be one of {', '.join(MODELS)}, not {model!r}")
+    if model not in FIT_MODELS:
+        raise InputError(f"motion model must be one of {', '.join(FIT_MODELS)}, not "
+                         f"{model!r}")
     if not threshold > 0:  # (also refuses NaN)
         raise InputError(f"the RANSAC threshold must be a distance > 0 px, not {threshold}")
     src = _points(src, "src", np.float32)
@@ -337,7 +442,7 @@ def _within(dx: np.ndarray, dy: np.ndarray, threshold: float) -> np.ndarray:
 
 
 def _column_median(a: np.ndarray) -> np.ndarray:
-    """``np.median(a, axis=0)`` of a finite ``(K, 2) float64`` array (K >= 1), computed as numpy
+    """``np.median(a, axis=0)`` of a finite ``(K, C) float64`` array (K >= 1), computed as numpy
     computes it (the same partition, the mean of the middle one or two values) without its
     per-call overhead, which on a few dozen shifts is most of a median's cost."""
     k = len(a)
@@ -354,8 +459,10 @@ def _column_median(a: np.ndarray) -> np.ndarray:
 class CameraMotionConfig:
     """How the camera motion is fitted to a frame's correspondences (its RANSAC settings)."""
 
-    motion_model: str = setting("homography", "camera motion model fitted by RANSAC",
-                                choices=MODELS)
+    motion_model: str = setting(AUTO, "camera motion model fitted by RANSAC (auto: a "
+                                      "homography or, when it explains the vectors about as "
+                                      "well, the simplest of affine, similarity, translation)",
+                                choices=FIT_MODELS)
     threshold: float = setting(1.5, "RANSAC inlier distance in working-size pixels", above=0)
 
     def __post_init__(self) -> None:

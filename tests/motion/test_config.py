@@ -47,6 +47,6 @@ def test_config_params_picks_names_in_order_and_replaces_defaults():
 
 
 def test_camera_motion_config_is_checked():
-    assert CameraMotionConfig().motion_model == "homography"
+    assert CameraMotionConfig().motion_model == "auto"
     with pytest.raises(InputError, match="CameraMotionConfig: parameter 'threshold'"):
         CameraMotionConfig(threshold=0.0)

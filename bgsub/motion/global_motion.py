@@ -313,15 +313,15 @@ def simplest_model(src: np.ndarray, dst: np.ndarray, homography: np.ndarray,
     inl = np.asarray(inliers, bool)
     fits = {"homography": np.asarray(homography, np.float64),
             **_least_squares_fits(s[inl], d[inl])}
-    points = np.column_stack([s, np.ones(len(s))])
-    errors = {name: _squared_residuals(m, points, d) for name, m in fits.items()}
+    names = list(fits)
+    errors = _squared_residuals(np.stack([fits[name] for name in names]), s, d)
     # Median of a 2D Gaussian residual's squared length: 2 ln 2 sigma^2.
-    typical = _column_median(errors["homography"][inl, None])[0]
+    typical = _column_median(errors[inl, :1])[0]
     sigma2 = max(typical / (2.0 * math.log(2.0)), _FINEST_READING ** 2)
     penalty = math.log(4.0 * len(s))
-    scores = {name: float(np.minimum(e, 4.0 * sigma2).sum()) / sigma2
-              + penalty * _PARAMETERS[name] for name, e in errors.items()}
-    best = min(fits, key=lambda name: (scores[name], _PARAMETERS[name]))
+    capped = np.minimum(errors, 4.0 * sigma2).sum(axis=0) / sigma2
+    scores = {name: float(c) + penalty * _PARAMETERS[name] for name, c in zip(names, capped)}
+    best = min(names, key=lambda name: (scores[name], _PARAMETERS[name]))
     return best, fits[best]
 
 
@@ -359,12 +359,13 @@ def _matrix(linear: np.ndarray, shift: np.ndarray) -> np.ndarray:
     return m
 
 
-def _squared_residuals(matrix: np.ndarray, points: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """(K,) float64: squared distance of ``d`` ``(K, 2)`` from the homogeneous ``(K, 3)``
-    ``points`` moved by ``matrix``."""
-    moved = points @ matrix.T
-    e = d - moved[:, :2] / moved[:, 2:]
-    return np.einsum("ij,ij->i", e, e)
+def _squared_residuals(matrices: np.ndarray, s: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """(K, M) float64: squared distance of each of ``d`` ``(K, 2)`` from its ``s`` ``(K, 2)``
+    moved by each of the ``(M, 3, 3)`` ``matrices`` (one product for all of them)."""
+    moved = (s @ matrices[:, :, :2].reshape(-1, 2).T + matrices[:, :, 2].reshape(-1))
+    moved = moved.reshape(len(s), -1, 3)
+    e = d[:, None, :] - moved[:, :, :2] / moved[:, :, 2:]
+    return np.einsum("kmi,kmi->km", e, e)
 
 
 def _checked(src: np.ndarray, dst: np.ndarray, weights: Optional[np.ndarray], *, model: str,

@@ -752,3 +752,30 @@ def test_last_motion_is_none_where_none_was_measured():
     engine.apply(frames[1])
     engine.apply(np.zeros_like(frames[2]))  # blank
     assert engine.last_status.startswith("fallback") and engine.last_motion is None
+
+
+def _strips_pan(n=16, pan=0.6, h=180, w=240):
+    """A pan of ``pan`` px a frame to the left over a flat gray scene with two narrow textured
+    vertical strips (a tower and a rocket against the sky); sensor noise sigma 1.5."""
+    texture = _texture(h, w + 40, seed=3)
+    world = np.full((h + 8, w + 48), 128, np.uint8)
+    for x0 in (40, 190):
+        world[:, x0:x0 + 20] = texture[:, x0:x0 + 20]
+    rng = np.random.default_rng(0)
+    return [np.clip(_shift(world, -pan * k, 0, h, w) + rng.normal(0, 1.5, (h, w)), 0, 255)
+            .astype(np.uint8) for k in range(n)]
+
+
+def test_vectors_on_two_narrow_strips_give_the_pan_without_an_invented_zoom():
+    frames = _strips_pan()
+    truth = np.array([[1, 0, -0.6 * (len(frames) - 1)], [0, 1, 0], [0, 0, 1.0]])
+    error = {}
+    for model in ("auto", "homography"):
+        engine = create_engine("grbm", motion_model=model)
+        path = np.eye(3)
+        for frame in frames:
+            engine.apply(frame)
+            path = engine.last_motion @ path
+        error[model] = corner_error(path, truth, width=240, height=180)
+    assert error["auto"] < 0.3, error
+    assert error["homography"] > 3 * error["auto"], error

@@ -17,7 +17,7 @@ from bgsub.background.compensated import BackgroundConfig
 from bgsub.background.fusion import FusionConfig
 from bgsub.engines.base import LEARNING_RATE, Param
 from bgsub.errors import InputError
-from bgsub.motion.global_motion import AUTO, FIT_MODELS
+from bgsub.motion.global_motion import AUTO, FIT_MODELS, MOTION_MODEL_HELP
 from bgsub.settings import check_settings, config_params, setting
 
 __all__ = ["MIN_WORK_WIDTH", "CameraConfig", "EngineConfig", "STAGES", "engine_params",
@@ -34,10 +34,7 @@ class CameraConfig:
     :class:`bgsub.motion.global_motion.CameraMotionConfig`), which fits it refuses and which
     motion it holds back."""
 
-    motion_model: str = setting(AUTO, "camera motion model fitted by RANSAC (auto: a "
-                                      "homography or, when it explains the vectors about as "
-                                      "well, the simplest of affine, similarity, translation: "
-                                      "chosen per frame by GRIC)", choices=FIT_MODELS)
+    motion_model: str = setting(AUTO, MOTION_MODEL_HELP, choices=FIT_MODELS)
     ransac_threshold: float = setting(1.5, "RANSAC inlier distance in working-size pixels",
                                       above=0)
     min_extent: float = setting(0.33, "a camera motion must be seen across at least this "

@@ -28,6 +28,7 @@ __all__ = [
     "AUTO",
     "FIT_MODELS",
     "MODELS",
+    "MOTION_MODEL_HELP",
     "fit_global_motion",
     "simplest_model",
     "apply_homography",
@@ -44,6 +45,10 @@ MODELS = ("homography", "affine", "similarity", "translation")
 AUTO = "auto"
 #: What a camera fit may be asked for: :data:`AUTO` or one of :data:`MODELS`.
 FIT_MODELS = (AUTO,) + MODELS
+#: The meaning of a ``motion_model`` setting (``bgsub methods``).
+MOTION_MODEL_HELP = ("camera motion model fitted by RANSAC (auto: a homography or, when it "
+                     "explains the vectors about as well, the simplest of affine, similarity, "
+                     "translation, chosen per frame by GRIC)")
 
 _MIN_POINTS = {"homography": 4, "affine": 3, "similarity": 2, "translation": 1, AUTO: 4}
 #: px: no reading of a patch's motion is more precise than this (the floor of GRIC's scale).
@@ -460,10 +465,7 @@ def _column_median(a: np.ndarray) -> np.ndarray:
 class CameraMotionConfig:
     """How the camera motion is fitted to a frame's correspondences (its RANSAC settings)."""
 
-    motion_model: str = setting(AUTO, "camera motion model fitted by RANSAC (auto: a "
-                                      "homography or, when it explains the vectors about as "
-                                      "well, the simplest of affine, similarity, translation)",
-                                choices=FIT_MODELS)
+    motion_model: str = setting(AUTO, MOTION_MODEL_HELP, choices=FIT_MODELS)
     threshold: float = setting(1.5, "RANSAC inlier distance in working-size pixels", above=0)
 
     def __post_init__(self) -> None:

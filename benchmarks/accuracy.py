@@ -31,7 +31,8 @@ on every run, to see how the figures carry over to poorer footage: ``noise=SIGMA
 gray levels, seeded by the frame number), ``jpeg=QUALITY`` (re-encoded), ``soft=F`` (shrunk by
 F and enlarged back: softer detail), ``step=N`` (every N-th frame: N times the motion),
 ``orbit=V`` (an added camera motion of V px a frame around a circle of ``ORBIT_RADIUS`` px,
-frames and ground truth cropped by the radius: slow pans of every direction).
+frames and ground truth cropped by the radius: slow pans of every direction), ``gain=A``
+(brightness times ``1 + A sin(2 pi k / GAIN_PERIOD)``: a camera's auto exposure).
 """
 
 from __future__ import annotations
@@ -111,7 +112,9 @@ def temporal_roi(seq: Path, n_frames: int) -> Tuple[int, int]:
     return max(first, 2), last  # the first frame has no history for any method
 
 
-DEGRADATIONS = ("noise", "jpeg", "soft", "step", "orbit")
+DEGRADATIONS = ("noise", "jpeg", "soft", "step", "orbit", "gain")
+#: Frames per cycle of ``--degrade gain=A``.
+GAIN_PERIOD = 40
 #: Radius (px) of the circle ``--degrade orbit=V`` moves the view around.
 ORBIT_RADIUS = 16
 
@@ -148,6 +151,8 @@ def degrade(image: np.ndarray, kind: str, value: float, k: int) -> np.ndarray:
         return cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
     if kind == "orbit":
         return _orbit(image, value, k, cv2.INTER_LINEAR)
+    if kind == "gain":
+        return cv2.convertScaleAbs(image, alpha=1.0 + value * np.sin(2 * np.pi * k / GAIN_PERIOD))
     return image
 
 
@@ -253,7 +258,8 @@ def main(argv: Optional[List[str]] = None) -> int:
     ap.add_argument("-p", "--param", action="append", default=[], metavar="KEY=VALUE")
     ap.add_argument("--oracle-camera", action="store_true")
     ap.add_argument("--degrade", type=parse_degrade, metavar="KIND=VALUE",
-                    help="degraded frames: noise=SIGMA, jpeg=QUALITY, soft=F, step=N or orbit=V")
+                    help="degraded frames: noise=SIGMA, jpeg=QUALITY, soft=F, step=N, "
+                         "orbit=V or gain=A")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--match", default="", help="only sequences whose path contains this")
     ap.add_argument("--json", help="also write the figures to this file")

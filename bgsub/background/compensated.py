@@ -322,6 +322,25 @@ class CompensatedBackground:
         inside = cv2.inRange(here, lo, hi) > 0  # every channel within its bounds
         return y0, x0, candidates[box] & inside
 
+    def exposure_gain(self, frame: np.ndarray, *, step: int = 4) -> float:
+        """``frame``'s brightness relative to the model (warped to it): the median of ``frame /
+        mean`` over every ``step``-th pixel and channel with a history (age 1 or more) where
+        neither is near black or saturated (model 20-235, frame 5-250 gray levels). A median,
+        so foreground and the background's own changes, a minority of the pixels, do not move
+        it. 1.0 before the first frame, for another size or with 100 values or fewer."""
+        if self.mean is None or self.mean.shape[:2] != np.shape(frame)[:2]:
+            return 1.0
+        f = np.asarray(frame)[::step, ::step].reshape(-1).astype(np.float32)
+        m = self.mean[::step, ::step].reshape(-1)
+        if f.size != m.size:
+            return 1.0
+        age = self.age[::step, ::step].reshape(-1)
+        ok = np.repeat(age >= 1.0, m.size // age.size)  # (one per channel, as mean is laid out)
+        ok &= (m > 20) & (m < 235) & (f > 5) & (f < 250)
+        if np.count_nonzero(ok) <= 100:
+            return 1.0
+        return float(np.median(f[ok] / m[ok]))
+
     def sensitive(self, *, within: float) -> np.ndarray:
         """``(H, W) bool``: pixels whose decision threshold (``k_sigma`` standard deviations, at
         least ``min_diff``, in every channel) is at most ``within`` gray levels, all False

@@ -72,6 +72,11 @@ class EngineConfig:
                                  "footage, whose pixel noise otherwise reads as motion and as "
                                  "background differences (1 suits sensor noise of 6 gray "
                                  "levels or JPEG quality 25; 0 = off)", low=0, high=8)
+    match_exposure: bool = setting(True, "divide each frame by its brightness gain against "
+                                         "the compensated background model (the median ratio "
+                                         "of their colours) before the model compares and "
+                                         "learns it, so auto exposure or a whole frame's "
+                                         "flicker is not taken for foreground")
     min_contrast: float = setting(4.0, "frames whose gray standard deviation is below this are "
                                        "blank or textureless: empty mask, model kept", low=0)
     scene_cut: float = setting(0.5, "restart the model when more than this fraction of the "

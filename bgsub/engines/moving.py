@@ -11,12 +11,15 @@ Each frame, at the working size (``work_width``; the mask is returned at the inp
 2. the motion to apply: small motion is held back (:class:`~bgsub.engines.parts.MotionHoldBack`);
    a frozen model (``learning_rate=0``) is registered to the frame
    (:class:`~bgsub.engines.parts.FrozenModelRegistration`);
-3. the compensated background model is warped and scores the frame and the vectors give their
+3. the compensated background model is warped and scores the frame, brought to the model's
+   exposure (:func:`~bgsub.engines.parts.match_exposure`), and the vectors give their
    violation map, while the other thread makes the frames' own motion evidence
    (:class:`~bgsub.background.fusion.Fusion`);
 4. a new shot restarts the model (:class:`~bgsub.engines.parts.SceneCut`);
-5. while the camera is still, a never-warped sample model's score replaces the compensated
-   one's (:class:`~bgsub.engines.parts.StillCameraSwitch`);
+5. while the camera is still, a never-warped sample model's score of the frame as it came
+   replaces the compensated one's (:class:`~bgsub.engines.parts.StillCameraSwitch`; its
+   samples hold each pixel's range of values, and over water a global gain estimate would
+   only add the glitter's own fluctuation);
 6. fusion and clean-up give the mask, less the blobs that touch nothing of the last frame's
    (:class:`~bgsub.engines.parts.BlobPersistence`); the model's update is deferred to the next
    frame, where it runs in the second thread (``overlap=1``) beside the front end.
@@ -41,7 +44,7 @@ from bgsub.engines.config import (MIN_WORK_WIDTH, CameraConfig, EngineConfig,
 from bgsub.engines.frontend import NO_MOTION, CameraFit, MotionFrontEnd, MotionResult
 from bgsub.engines.parts import (KNOWN_MOTION_HELP, BlobPersistence, FrozenModelRegistration,
                                  KnownMotion, MotionHoldBack, SceneCut, SmallRegionRule,
-                                 StillCameraSwitch, work_scale)
+                                 StillCameraSwitch, match_exposure, work_scale)
 from bgsub.engines.threads import SecondThread, limited_threads
 from bgsub.errors import InputError
 from bgsub.io.flowio import add_colour_wheel, draw_flow_arrows
@@ -146,8 +149,9 @@ class MovingCameraEngine(Engine):
         self._prev_gray: Optional[np.ndarray] = None
         self._prev_work: Optional[np.ndarray] = None
         self._prev_motion: Optional[np.ndarray] = None  # last good fit, (3, 3)
-        # The last frame's background update, (frame, learn_slowly, rate): deferred to the next
-        # frame, where it runs alongside the motion front end.
+        # The last frame's background update, (frame at the compensated model's exposure, frame,
+        # learn_slowly, rate): deferred to the next frame, where it runs alongside the motion
+        # front end.
         self._pending: Optional[tuple] = None
         self._last: Optional[MotionResult] = None
         self._last_matrix: Optional[np.ndarray] = None  # what the last frame applied
@@ -212,8 +216,8 @@ class MovingCameraEngine(Engine):
         self._last = result
         matrix, status = self._camera_matrix(result, refused)
         applied = self._to_apply(matrix, gray, register=rate == 0.0 and result.motion.ok)
-        score, violation = self._compare(work, gray, result, matrix, applied, rate,
-                                         fixed_threshold=refused)
+        score, violation, exposed = self._compare(work, gray, result, matrix, applied, rate,
+                                                  fixed_threshold=refused)
         unseen = self.bg.age < self.bg.config.min_age
         if self.roi is not None:  # (what changes outside the region is no new shot)
             unseen = unseen | ~self.roi.at(gray.shape)
@@ -227,7 +231,7 @@ class MovingCameraEngine(Engine):
                                                  compensated_score=score)
             score = score if still_score is None else still_score
         mask = self.persistence.filter(self.fusion.mask(score, violation), matrix)
-        self._pending = (work, self.fusion.learn_slowly(mask, violation), rate)
+        self._pending = (exposed, work, self.fusion.learn_slowly(mask, violation), rate)
         self._prev, self._prev_gray = cur, gray
         self._prev_work = work
         if result.motion.ok:
@@ -279,11 +283,13 @@ class MovingCameraEngine(Engine):
     def _compare(self, work: np.ndarray, gray: np.ndarray, result: MotionResult,
                  matrix: np.ndarray, applied: np.ndarray, rate: float, *,
                  fixed_threshold: bool) -> tuple:
-        """``(score, violation)``: the background model, warped by ``applied``, scores the
-        frame and the vectors of ``result`` give their violation map, while the second thread
-        makes the frames' own evidence, both against the camera's ``matrix`` (the vectors'
-        with the fixed violation threshold when ``fixed_threshold``: a refused region's
-        vectors are one consistent motion, not noise about the camera's)."""
+        """``(score, violation, exposed)``: the background model, warped by ``applied``, scores
+        the frame brought to its exposure (``exposed``, :func:`match_exposure` with
+        ``match_exposure``, else ``work``) and the vectors of ``result`` give their violation
+        map, while the second thread makes the frames' own evidence from the frames as they
+        came, both against the camera's ``matrix`` (the vectors' with the fixed violation
+        threshold when ``fixed_threshold``: a refused region's vectors are one consistent
+        motion, not noise about the camera's)."""
         image: list = []
         prev = self._prev_work
 
@@ -296,18 +302,19 @@ class MovingCameraEngine(Engine):
             self.bg.warp(applied, sharp=rate == 0.0)
             if rate == 0.0:
                 self.registration.forget_unseen(self.bg, applied)
-            score = self.bg.score(work)
+            exposed = match_exposure(work, self.bg) if self.config.match_exposure else work
+            score = self.bg.score(exposed)
             vectors = self.fusion.vector_evidence(
                 result.points, result.disp, result.evidence_weights, matrix, work.shape[:2],
                 noise_scale=0.0 if fixed_threshold else None)
-        return score, self.fusion.combined(vectors, image[0])
+        return score, self.fusion.combined(vectors, image[0]), exposed
 
     def _finish_update(self) -> None:
         """Apply the deferred background update of the last frame, if any."""
         if self._pending is not None:
-            work, learn_slowly, rate = self._pending
+            exposed, work, learn_slowly, rate = self._pending
             self._pending = None
-            self.bg.update(work, learn_slowly, rate)
+            self.bg.update(exposed, learn_slowly, rate)
             if self.still_switch is not None:
                 self.still_switch.update(work, learn_slowly, rate)
 

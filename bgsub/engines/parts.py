@@ -32,7 +32,8 @@ from bgsub.motion.global_motion import (GlobalMotion, apply_homography, corner_d
                                         fit_global_motion)
 
 __all__ = ["SMALL_REGION", "spans_frame", "SmallRegionRule", "MotionHoldBack",
-           "FrozenModelRegistration", "SceneCut", "BlobPersistence", "StillCameraSwitch",
+           "FrozenModelRegistration", "match_exposure", "EXPOSURE_TOLERANCE", "SceneCut",
+           "BlobPersistence", "StillCameraSwitch",
            "motion_snr", "KnownMotion", "KNOWN_MOTION_HELP", "work_scale"]
 
 
@@ -234,6 +235,26 @@ class FrozenModelRegistration:
                                      flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
                                      borderValue=0)
         model.age[inside < 0.999] = 0.0
+
+
+# ---------------------------------------------------------------------- exposure
+
+#: Gains this close to 1 leave the frame as it is (under a rounding's worth at mid-gray).
+EXPOSURE_TOLERANCE = 0.005
+
+
+def match_exposure(frame: np.ndarray, model: CompensatedBackground) -> np.ndarray:
+    """``frame`` ((h, w) or (h, w, C) uint8) divided by its brightness gain against ``model``
+    (:meth:`~bgsub.background.compensated.CompensatedBackground.exposure_gain`), rounded and
+    saturated; ``frame`` itself when the gain is within :data:`EXPOSURE_TOLERANCE` of 1.
+
+    A camera's auto exposure scales the whole frame by a few percent a frame; the model,
+    learning at ``alpha``, lags behind and calls every bright pixel foreground. Brought to the
+    model's exposure, frames keep the model's colours, which then drift with nothing."""
+    gain = model.exposure_gain(frame)
+    if abs(gain - 1.0) <= EXPOSURE_TOLERANCE:
+        return frame
+    return cv2.convertScaleAbs(frame, alpha=1.0 / gain)
 
 
 # ---------------------------------------------------------------------- scene cut

@@ -394,3 +394,14 @@ def test_persistent_blobs_follows_the_camera():
     mask = _blobs((10, 40))
     assert np.array_equal(persistent_blobs(mask, previous, pan, radius=2), mask)
     assert not persistent_blobs(mask, previous, np.eye(3), radius=2).any()
+
+
+def test_exposure_gain_is_the_frames_brightness_over_the_models_despite_foreground():
+    frame = _view(_scene(), 0)
+    model = CompensatedBackground()
+    assert model.exposure_gain(frame) == 1.0  # no model yet
+    model.reset(frame)
+    model.update(frame)
+    brighter = cv2.convertScaleAbs(frame, alpha=1.2)
+    brighter[:, :40] = 255 - brighter[:, :40]  # a quarter of the frame is something else
+    assert model.exposure_gain(brighter) == pytest.approx(1.2, abs=0.01)

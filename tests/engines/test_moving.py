@@ -779,3 +779,18 @@ def test_vectors_on_two_narrow_strips_give_the_pan_without_an_invented_zoom():
         error[model] = corner_error(path, truth, width=240, height=180)
     assert error["auto"] < 0.3, error
     assert error["homography"] > 3 * error["auto"], error
+
+
+def _exposed(clip, amplitude, period=12):
+    """``clip``'s frames with their brightness times ``1 + amplitude sin(2 pi k / period)``
+    (a camera's auto exposure)."""
+    for k, (frame, gt) in enumerate(clip):
+        yield cv2.convertScaleAbs(frame, alpha=1 + amplitude * np.sin(2 * np.pi * k / period)), gt
+
+
+@pytest.mark.parametrize("name", ["grbm", "compensated"])
+def test_frames_brought_to_the_models_exposure_keep_the_square_under_auto_exposure(name):
+    on, _ = _scored(_engine_with(name), _exposed(_frames(n=24), 0.15), skip=3)
+    off, _ = _scored(_engine_with(name, match_exposure=False), _exposed(_frames(n=24), 0.15),
+                     skip=3)
+    assert on > 0.8 and off < on - 0.15, (on, off)

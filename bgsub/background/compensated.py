@@ -211,7 +211,7 @@ class CompensatedBackground:
         return out
 
     def update(self, frame: np.ndarray, fgmask: Optional[np.ndarray] = None,
-               learning_rate: float = -1.0) -> None:
+               learning_rate: float = -1.0, *, exposure: float = 1.0) -> None:
         """Blend ``frame`` into the model.
 
         Parameters
@@ -226,6 +226,11 @@ class CompensatedBackground:
             restarts the model from ``frame`` (which may then be of another size, as with
             :meth:`reset`). Pixels without history (uncovered at the border) take the frame
             whatever the rate: there is nothing else to put there.
+        exposure : float
+            The gain ``frame`` was divided by to bring it to the model's exposure
+            (:meth:`exposure_gain`). The whole mean then follows the camera's exposure at
+            ``alpha`` (or ``learning_rate``) like any other change, so an error of the gain's
+            estimate stays that frame's instead of accumulating from frame to frame.
 
         Raises
         ------
@@ -272,6 +277,9 @@ class CompensatedBackground:
         d2 = np.multiply(d, d) if sq is None else sq
         d *= r
         self.mean += d
+        if exposure != 1.0:
+            follow = p.alpha if learning_rate < 0.0 else learning_rate
+            self.mean *= np.float32(1.0 + follow * (exposure - 1.0))
         if ghost is not None:
             # The mean takes the frame; the spread learns as foreground (the old content's
             # difference would inflate it and blind the pixel).

@@ -149,9 +149,9 @@ class MovingCameraEngine(Engine):
         self._prev_gray: Optional[np.ndarray] = None
         self._prev_work: Optional[np.ndarray] = None
         self._prev_motion: Optional[np.ndarray] = None  # last good fit, (3, 3)
-        # The last frame's background update, (frame at the compensated model's exposure, frame,
-        # learn_slowly, rate): deferred to the next frame, where it runs alongside the motion
-        # front end.
+        # The last frame's background update, ((frame at the compensated model's exposure, its
+        # gain), frame, learn_slowly, rate): deferred to the next frame, where it runs alongside
+        # the motion front end.
         self._pending: Optional[tuple] = None
         self._last: Optional[MotionResult] = None
         self._last_matrix: Optional[np.ndarray] = None  # what the last frame applied
@@ -284,12 +284,12 @@ class MovingCameraEngine(Engine):
                  matrix: np.ndarray, applied: np.ndarray, rate: float, *,
                  fixed_threshold: bool) -> tuple:
         """``(score, violation, exposed)``: the background model, warped by ``applied``, scores
-        the frame brought to its exposure (``exposed``, :func:`match_exposure` with
-        ``match_exposure``, else ``work``) and the vectors of ``result`` give their violation
-        map, while the second thread makes the frames' own evidence from the frames as they
-        came, both against the camera's ``matrix`` (the vectors' with the fixed violation
-        threshold when ``fixed_threshold``: a refused region's vectors are one consistent
-        motion, not noise about the camera's)."""
+        the frame brought to its exposure (``exposed``, the ``(frame, gain)`` of
+        :func:`match_exposure` with ``match_exposure``, else ``(work, 1.0)``) and the vectors
+        of ``result`` give their violation map, while the second thread makes the frames' own
+        evidence from the frames as they came, both against the camera's ``matrix`` (the
+        vectors' with the fixed violation threshold when ``fixed_threshold``: a refused
+        region's vectors are one consistent motion, not noise about the camera's)."""
         image: list = []
         prev = self._prev_work
 
@@ -302,8 +302,8 @@ class MovingCameraEngine(Engine):
             self.bg.warp(applied, sharp=rate == 0.0)
             if rate == 0.0:
                 self.registration.forget_unseen(self.bg, applied)
-            exposed = match_exposure(work, self.bg) if self.config.match_exposure else work
-            score = self.bg.score(exposed)
+            exposed = match_exposure(work, self.bg) if self.config.match_exposure else (work, 1.0)
+            score = self.bg.score(exposed[0])
             vectors = self.fusion.vector_evidence(
                 result.points, result.disp, result.evidence_weights, matrix, work.shape[:2],
                 noise_scale=0.0 if fixed_threshold else None)
@@ -312,9 +312,9 @@ class MovingCameraEngine(Engine):
     def _finish_update(self) -> None:
         """Apply the deferred background update of the last frame, if any."""
         if self._pending is not None:
-            exposed, work, learn_slowly, rate = self._pending
+            (exposed, gain), work, learn_slowly, rate = self._pending
             self._pending = None
-            self.bg.update(exposed, learn_slowly, rate)
+            self.bg.update(exposed, learn_slowly, rate, exposure=gain)
             if self.still_switch is not None:
                 self.still_switch.update(work, learn_slowly, rate)
 

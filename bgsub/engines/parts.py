@@ -18,7 +18,7 @@ from __future__ import annotations
 import collections
 import dataclasses
 import os
-from typing import Any, Optional
+from typing import Any, Optional, Tuple
 
 import cv2
 import numpy as np
@@ -32,8 +32,8 @@ from bgsub.motion.global_motion import (GlobalMotion, apply_homography, corner_d
                                         fit_global_motion)
 
 __all__ = ["SMALL_REGION", "spans_frame", "SmallRegionRule", "MotionHoldBack",
-           "FrozenModelRegistration", "match_exposure", "EXPOSURE_TOLERANCE", "SceneCut",
-           "BlobPersistence", "StillCameraSwitch",
+           "FrozenModelRegistration", "match_exposure", "EXPOSURE_TOLERANCE", "SATURATED",
+           "SceneCut", "BlobPersistence", "StillCameraSwitch",
            "motion_snr", "KnownMotion", "KNOWN_MOTION_HELP", "work_scale"]
 
 
@@ -241,20 +241,30 @@ class FrozenModelRegistration:
 
 #: Gains this close to 1 leave the frame as it is (under a rounding's worth at mid-gray).
 EXPOSURE_TOLERANCE = 0.005
+#: Gray levels at which a camera's value may be clipped.
+SATURATED = 250
 
 
-def match_exposure(frame: np.ndarray, model: CompensatedBackground) -> np.ndarray:
-    """``frame`` ((h, w) or (h, w, C) uint8) divided by its brightness gain against ``model``
-    (:meth:`~bgsub.background.compensated.CompensatedBackground.exposure_gain`), rounded and
-    saturated; ``frame`` itself when the gain is within :data:`EXPOSURE_TOLERANCE` of 1.
+def match_exposure(frame: np.ndarray, model: CompensatedBackground) -> Tuple[np.ndarray, float]:
+    """``(exposed, gain)``: ``frame`` ((h, w) or (h, w, C) uint8) divided by its brightness gain
+    against ``model`` (:meth:`~bgsub.background.compensated.CompensatedBackground.exposure_gain`),
+    rounded and saturated, and that gain; ``(frame, 1.0)`` when the gain is within
+    :data:`EXPOSURE_TOLERANCE` of 1.
 
     A camera's auto exposure scales the whole frame by a few percent a frame; the model,
     learning at ``alpha``, lags behind and calls every bright pixel foreground. Brought to the
-    model's exposure, frames keep the model's colours, which then drift with nothing."""
+    model's exposure, frames keep the model's colours. A value clipped at :data:`SATURATED` or
+    above says only that the scene is at least that bright, so it takes the model's value where
+    that is brighter than the divided one."""
     gain = model.exposure_gain(frame)
     if abs(gain - 1.0) <= EXPOSURE_TOLERANCE:
-        return frame
-    return cv2.convertScaleAbs(frame, alpha=1.0 / gain)
+        return frame, 1.0
+    exposed = cv2.convertScaleAbs(frame, alpha=1.0 / gain)
+    clipped = np.asarray(frame) >= SATURATED
+    if clipped.any():
+        mean = cv2.convertScaleAbs(model.mean).reshape(exposed.shape)
+        np.maximum(exposed, mean, out=exposed, where=clipped)
+    return exposed, gain
 
 
 # ---------------------------------------------------------------------- scene cut

@@ -405,3 +405,21 @@ def test_exposure_gain_is_the_frames_brightness_over_the_models_despite_foregrou
     brighter = cv2.convertScaleAbs(frame, alpha=1.2)
     brighter[:, :40] = 255 - brighter[:, :40]  # a quarter of the frame is something else
     assert model.exposure_gain(brighter) == pytest.approx(1.2, abs=0.01)
+
+
+@pytest.mark.parametrize("follow", [True, False])
+def test_a_gain_read_too_high_on_every_frame_does_not_drift_a_model_that_follows_exposure(follow):
+    # The gain is read against the model, which learns the matched frames: read 2 % too high
+    # on every frame, it darkens the model a little more on each, unless the model follows.
+    frame = _view(_scene(), 0)
+    model = CompensatedBackground()
+    model.update(frame)
+    for _ in range(200):
+        gain = 1.02 * model.exposure_gain(frame)
+        matched = cv2.convertScaleAbs(frame, alpha=1.0 / gain)
+        model.update(matched, exposure=gain if follow else 1.0)
+    drift = model.exposure_gain(frame)  # the unchanged frame's brightness over the model's
+    if follow:
+        assert drift == pytest.approx(1.0, abs=0.03)
+    else:
+        assert drift > 1.3

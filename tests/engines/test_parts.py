@@ -5,6 +5,7 @@ import dataclasses
 import pickle
 import threading
 
+import cv2
 import numpy as np
 import pytest
 
@@ -15,8 +16,8 @@ from bgsub.engines.config import STAGES, CameraConfig, EngineConfig, stage_confi
 from bgsub.engines.frontend import NO_MOTION, MotionResult
 from bgsub.engines.frontends.grbm import GRBM_TUNED
 from bgsub.background.compensated import CompensatedBackground
-from bgsub.engines.parts import (SMALL_REGION, BlobPersistence, MotionHoldBack, SceneCut,
-                                 SmallRegionRule, StillCameraSwitch)
+from bgsub.engines.parts import (SATURATED, SMALL_REGION, BlobPersistence, MotionHoldBack,
+                                 SceneCut, SmallRegionRule, StillCameraSwitch, match_exposure)
 from bgsub.engines.threads import SecondThread
 from bgsub.errors import InputError
 from bgsub.motion.global_motion import GlobalMotion
@@ -278,3 +279,25 @@ def test_blob_persistence_is_not_changed_by_the_caller_drawing_on_a_mask():
     returned = part.filter(_square_at(5), np.eye(3))
     returned[:] = 0  # the caller's array, as apply() returns it at the working size
     assert np.array_equal(part.filter(_square_at(7), np.eye(3)), _square_at(7))
+
+
+def test_a_frame_brought_to_the_models_exposure_keeps_the_model_where_it_was_clipped():
+    rng = np.random.default_rng(0)
+    scene = rng.integers(60, 120, (60, 80, 3)).astype(np.uint8)
+    scene[:, 40:] = 230  # a bright wall, clipped once the exposure rises by a fifth
+    model = CompensatedBackground()
+    model.update(scene)
+    brighter = cv2.convertScaleAbs(scene, alpha=1.2)
+    assert (brighter[:, 40:] >= SATURATED).all()
+    exposed, gain = match_exposure(brighter, model)
+    assert gain == pytest.approx(1.2, abs=0.01)
+    assert np.abs(exposed[:, :40].astype(int) - scene[:, :40]).max() <= 1
+    assert (exposed[:, 40:] == 230).all()  # not 255 / 1.2 = 212: the wall is at least that bright
+
+
+def test_a_frame_at_the_models_exposure_is_left_as_it_came():
+    scene = np.random.default_rng(1).integers(30, 200, (60, 80, 3)).astype(np.uint8)
+    model = CompensatedBackground()
+    model.update(scene)
+    exposed, gain = match_exposure(scene, model)
+    assert exposed is scene and gain == 1.0

@@ -250,29 +250,11 @@ class CompensatedBackground:
             self.age[:] = 1.0
             return
         self._check(frame)
-        cached, self._diff = self._diff, None
-        sq = None
-        if cached is not None and cached[0] is frame and self.mean is not None:
-            # score() of this frame: d = f - mean (and its square), still current.
-            f, d, sq = cached[1], cached[2], cached[3]
-        else:
-            f = self._as_float(frame)
-            d = None
-        if d is None:
-            d = f - self.mean
-        # rate = max(1 / (age + 1), alpha), in place (these are whole-frame float32 arrays).
-        rate = self.age + np.float32(1.0)
-        np.reciprocal(rate, out=rate)
-        if learning_rate >= 0.0:
-            # The caller's rate for every pixel with a history (age >= 1).
-            np.copyto(rate, np.float32(learning_rate), where=self.age >= 1.0)
-        else:
-            np.maximum(rate, np.float32(p.alpha), out=rate)
-            if fgmask is not None:
-                fg = np.asarray(fgmask).astype(bool)
-                np.copyto(rate, np.float32(p.fg_alpha), where=fg & (self.age >= p.min_age))
+        f, d, sq = self._difference(frame)
+        fg = None if fgmask is None else np.asarray(fgmask).astype(bool)
+        rate = self._rate(learning_rate, fg)
         # Judged on the model before this frame's update.
-        ghost = self._ghost(f, fg) if learning_rate < 0.0 and fgmask is not None else None
+        ghost = self._ghost(f, fg) if learning_rate < 0.0 and fg is not None else None
         r = _per_channel(rate, d.shape[2])
         d2 = np.multiply(d, d) if sq is None else sq
         d *= r
@@ -293,11 +275,35 @@ class CompensatedBackground:
         d2 *= r
         self.var += d2
         np.maximum(self.var, np.float32(p.min_std**2), out=self.var)
-        if learning_rate < 0.0 and fgmask is not None:
+        if learning_rate < 0.0 and fg is not None:
             # Only a mask's verdict counts: a frame learnt without one (the first) is unjudged.
             np.maximum(self.seen, np.float32(1.0), out=self.seen, where=~fg)
         self.age += np.float32(1.0)
         np.minimum(self.age, np.float32(p.max_age), out=self.age)
+
+    def _difference(self, frame: np.ndarray) -> tuple:
+        """``(f, d, sq)``: ``frame`` as (H, W, C) float32, ``d = f - mean`` and ``d * d``, as
+        :meth:`score` of this frame left them (``sq`` None when it did not)."""
+        cached, self._diff = self._diff, None
+        if cached is not None and cached[0] is frame:
+            return cached[1], cached[2], cached[3]
+        f = self._as_float(frame)
+        return f, f - self.mean, None
+
+    def _rate(self, learning_rate: float, fg: Optional[np.ndarray]) -> np.ndarray:
+        """(H, W) float32 rate of each pixel: with ``learning_rate`` negative, max(1 / (age +
+        1), ``alpha``) and ``fg_alpha`` on the (H, W) bool ``fg`` pixels of age ``min_age`` or
+        more; else ``learning_rate`` wherever there is a history (age 1 or more)."""
+        p = self.config
+        rate = self.age + np.float32(1.0)
+        np.reciprocal(rate, out=rate)
+        if learning_rate >= 0.0:
+            np.copyto(rate, np.float32(learning_rate), where=self.age >= 1.0)
+            return rate
+        np.maximum(rate, np.float32(p.alpha), out=rate)
+        if fg is not None:
+            np.copyto(rate, np.float32(p.fg_alpha), where=fg & (self.age >= p.min_age))
+        return rate
 
     def _ghost(self, f: np.ndarray, fg: np.ndarray) -> Optional[tuple]:
         """``(y0, x0, heal)`` or None for none: ``heal``, a bool window of the frame at

@@ -75,7 +75,8 @@ class EngineConfig:
     match_exposure: bool = setting(True, "divide each frame by its brightness gain against "
                                          "the compensated background model (the median ratio "
                                          "of their colours) before the model compares and "
-                                         "learns it, so auto exposure or a whole frame's "
+                                         "learns it, while the model follows the gain at its "
+                                         "learning rate, so auto exposure or a whole frame's "
                                          "flicker is not taken for foreground")
     min_contrast: float = setting(4.0, "frames whose gray standard deviation is below this are "
                                        "blank or textureless: empty mask, model kept", low=0)

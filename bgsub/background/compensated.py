@@ -211,7 +211,8 @@ class CompensatedBackground:
         return out
 
     def update(self, frame: np.ndarray, fgmask: Optional[np.ndarray] = None,
-               learning_rate: float = -1.0, *, exposure: float = 1.0) -> None:
+               learning_rate: float = -1.0, *, exposure: float = 1.0,
+               confirmed: Optional[np.ndarray] = None) -> None:
         """Blend ``frame`` into the model.
 
         Parameters
@@ -231,6 +232,10 @@ class CompensatedBackground:
             (:meth:`exposure_gain`). The whole mean then follows the camera's exposure at
             ``alpha`` (or ``learning_rate``) like any other change, so an error of the gain's
             estimate stays that frame's instead of accumulating from frame to frame.
+        confirmed : (H, W) bool, optional
+            Pixels the frames' motion shows to be background (:meth:`Fusion.confirmed`). Where
+            the model has never seen them as background, its mean takes the frame (automatic
+            rate only): what it holds there is an object of its first frame.
 
         Raises
         ------
@@ -255,6 +260,8 @@ class CompensatedBackground:
         rate = self._rate(learning_rate, fg)
         # Judged on the model before this frame's update.
         ghost = self._ghost(f, fg) if learning_rate < 0.0 and fg is not None else None
+        if confirmed is not None and learning_rate < 0.0:
+            confirmed = np.asarray(confirmed, bool) & (self.seen < 0.5)
         r = _per_channel(rate, d.shape[2])
         d2 = np.multiply(d, d) if sq is None else sq
         d *= r
@@ -268,6 +275,8 @@ class CompensatedBackground:
             y0, x0, heal = ghost
             crop = self.mean[y0:y0 + heal.shape[0], x0:x0 + heal.shape[1]]
             crop[heal] = f[y0:y0 + heal.shape[0], x0:x0 + heal.shape[1]][heal]
+        if confirmed is not None and learning_rate < 0.0:
+            self.mean[confirmed] = f[confirmed]
         # Variance of background pixels only (with the clipped residual): a passing object must
         # not inflate the spread and blind the model.
         np.minimum(d2, np.float32((4.0 * p.init_std) ** 2), out=d2)

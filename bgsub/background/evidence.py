@@ -12,6 +12,11 @@ This is aperture-aware by construction: on a flat patch every motion explains th
 on a straight edge a shift along the edge changes nothing, so only the component across it can
 make ``r_alt`` smaller; on a corner or texture any disagreement does. A wrong local vector on
 the background explains the frame worse than the camera and gives no evidence at all.
+
+:func:`camera_evidence_map` is the other side: where the camera's motion explains the frame
+clearly better than no motion, the pixel is background seen moving with the camera (textured
+background under a moving camera; nothing on a flat patch or under a still camera).
+:func:`frame_evidence` makes both maps from one warp.
 """
 
 from __future__ import annotations
@@ -25,7 +30,8 @@ from bgsub.background.compensated import warp_image
 from bgsub.errors import InputError
 from bgsub.motion.global_motion import apply_homography
 
-__all__ = ["motion_evidence_map", "residual_field", "cell_index", "cells_to_pixels"]
+__all__ = ["motion_evidence_map", "camera_evidence_map", "frame_evidence", "residual_field",
+           "cell_index", "cells_to_pixels"]
 
 
 def residual_field(points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
@@ -112,20 +118,55 @@ def motion_evidence_map(prev: np.ndarray, cur: np.ndarray, matrix: np.ndarray, *
     (H, W) float32 in [0, 1]: near 0 where the camera's motion explains the frame as well as
     any alternative (no evidence), near 1 where an alternative explains it clearly better.
     """
+    return frame_evidence(prev, cur, matrix, residual=residual, window=window, noise=noise,
+                          start=start, span=span)[0]
+
+
+def camera_evidence_map(prev: np.ndarray, cur: np.ndarray, matrix: np.ndarray, *,
+                        window: int = 7, noise: float = 4.0, start: float = 0.1,
+                        span: float = 0.4) -> np.ndarray:
+    """Where the current frame is clearly better explained by the camera's motion than by no
+    motion: the same ramp as :func:`motion_evidence_map` of ``(r_still - r_cam) / (r_cam +
+    r_still + noise)``, with the same parameters.
+
+    Returns
+    -------
+    (H, W) float32 in [0, 1]: near 1 on background seen moving with the camera (textured, the
+    camera moving); near 0 on flat areas, under a still camera, and where the frame stays put
+    (an object the camera follows).
+    """
+    return frame_evidence(prev, cur, matrix, window=window, noise=noise, start=start,
+                          span=span)[1]
+
+
+def frame_evidence(prev: np.ndarray, cur: np.ndarray, matrix: np.ndarray, *,
+                   residual: Optional[np.ndarray] = None, window: int = 7, noise: float = 4.0,
+                   start: float = 0.1, span: float = 0.4) -> tuple:
+    """``(against, along)``, both (H, W) float32 in [0, 1]: :func:`motion_evidence_map` and
+    :func:`camera_evidence_map` of the same frames (see there for the parameters), from one
+    warp of ``prev``."""
     _check_frames(prev, cur)
     h, w = cur.shape[:2]
     k = (int(window), int(window))
     moved = warp_image(prev, matrix, (w, h), cv2.INTER_LINEAR, cv2.BORDER_REPLICATE)
     r_cam = _mean_absdiff(cur, moved, k)
-    r_alt = _mean_absdiff(cur, prev, k)
+    r_still = _mean_absdiff(cur, prev, k)
+    along = _ramp(r_still - r_cam, r_cam + r_still + np.float32(noise), start, span)
+    r_alt = r_still
     if residual is not None:
         # The camera-moved frame moved on by the residual: the local vectors' motion (exact for
         # a translation, and to first order for the small rotations and zooms between frames).
         grid_x, grid_y = _pixel_grid(h, w)
         local = cv2.remap(moved, grid_x - residual[:, :, 0], grid_y - residual[:, :, 1],
                           cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        np.minimum(r_alt, _mean_absdiff(cur, local, k), out=r_alt)
-    s = (r_cam - r_alt) / (r_cam + r_alt + np.float32(noise))
+        r_alt = np.minimum(r_still, _mean_absdiff(cur, local, k))
+    against = _ramp(r_cam - r_alt, r_cam + r_alt + np.float32(noise), start, span)
+    return against, along
+
+
+def _ramp(num: np.ndarray, den: np.ndarray, start: float, span: float) -> np.ndarray:
+    """``clip((num / den - start) / span, 0, 1)``, (H, W) float32, in place in ``num``."""
+    s = np.divide(num, den, out=num)
     s -= np.float32(start)
     s *= np.float32(1.0 / span)
     return np.clip(s, 0.0, 1.0, out=s)

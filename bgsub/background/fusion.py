@@ -25,7 +25,7 @@ from typing import Optional
 import cv2
 import numpy as np
 
-from bgsub.background.evidence import (cell_index, cells_to_pixels, motion_evidence_map,
+from bgsub.background.evidence import (cell_index, cells_to_pixels, frame_evidence,
                                        residual_field)
 from bgsub.errors import InputError
 from bgsub.motion.global_motion import apply_homography
@@ -64,6 +64,12 @@ class FusionConfig:
     heal_below: float = setting(0.25, "background differences where the local motion agrees "
                                       "with the camera (violation below this) are learnt at "
                                       "the normal rate (ghost healing)", low=0)
+    confirm: float = setting(0.5, "a foreground pixel the model never saw as background takes "
+                                  "the frame where the camera's motion explains the frames "
+                                  "at least this clearly better than no motion (camera "
+                                  "evidence, 0-1) and no local motion disputes it: the ghost "
+                                  "of an object in the first frame, on textured background "
+                                  "(0 = off)", low=0, high=1)
     persist: int = setting(4, "a blob is kept only if it overlaps the previous frame's mask, "
                               "moved by the camera and grown by this many working-size px "
                               "(0 = off): what flickers for one frame is not an object", low=0,
@@ -102,7 +108,7 @@ class Fusion:
                                     matrix, prev, cur)
         vectors = self.vector_evidence(points, disp, weights, matrix, cur.shape[:2],
                                        noise_scale=noise_scale)
-        return self.combined(vectors, image)
+        return self.combined(vectors, None if image is None else image[0])
 
     def vector_evidence(self, points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
                         matrix: np.ndarray, shape: tuple, *,
@@ -118,18 +124,20 @@ class Fusion:
 
     def image_evidence(self, points: np.ndarray, disp: np.ndarray, fit_weights: np.ndarray,
                        matrix: np.ndarray, prev: np.ndarray,
-                       cur: np.ndarray) -> Optional[np.ndarray]:
-        """The frames' own part of :meth:`violation`, ``(h, w) float32`` scaled by
-        ``image_cue``; None when that cue is off or the fusion ignores motion evidence."""
+                       cur: np.ndarray) -> Optional[tuple]:
+        """``(against, along)``, (h, w) float32 each: the frames' own part of :meth:`violation`
+        scaled by ``image_cue``, and their :func:`~bgsub.background.evidence.camera_evidence_map`
+        (for :meth:`confirmed`); None when that cue is off or the fusion ignores motion
+        evidence."""
         c = self.config
         if c.image_cue == 0 or (c.flow_boost == 0.0 and c.flow_damp == 0.0):
             return None
         # Near 0 where the frames hold no evidence (flat areas, edges moving along
         # themselves, a still camera's background): it never lowers the vectors' opinion.
         local = residual_field(points, disp, fit_weights, matrix, cur.shape[:2])
-        image = motion_evidence_map(prev, cur, matrix, residual=local)
-        image *= np.float32(c.image_cue)
-        return image
+        against, along = frame_evidence(prev, cur, matrix, residual=local)
+        against *= np.float32(c.image_cue)
+        return against, along
 
     @staticmethod
     def combined(vectors: Optional[np.ndarray],
@@ -146,6 +154,17 @@ class Fusion:
         return fuse_masks(score, violation, flow_boost=c.flow_boost, flow_damp=c.flow_damp,
                           threshold=c.threshold, min_area=c.min_area, close=c.close,
                           fill_holes=c.fill_holes)
+
+    def confirmed(self, mask: np.ndarray, violation: Optional[np.ndarray],
+                  along: Optional[np.ndarray]) -> Optional[np.ndarray]:
+        """``(h, w) bool`` or None: the foreground of ``mask`` that the frames show moving with
+        the camera (``along``, the camera evidence of :meth:`image_evidence`, at least
+        ``confirm``) and that no local motion disputes (``violation`` below ``heal_below``).
+        The background model takes the frame there where it never saw background (the
+        ghost of an object in its first frame, :meth:`CompensatedBackground.update`)."""
+        if along is None or violation is None or self.config.confirm == 0:
+            return None
+        return (mask > 0) & (along >= self.config.confirm) & (violation < self.config.heal_below)
 
     def learn_slowly(self, mask: np.ndarray, violation: Optional[np.ndarray]) -> np.ndarray:
         """``(h, w) bool``: the foreground of ``mask``, less where the local motion confidently

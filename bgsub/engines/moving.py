@@ -150,8 +150,8 @@ class MovingCameraEngine(Engine):
         self._prev_work: Optional[np.ndarray] = None
         self._prev_motion: Optional[np.ndarray] = None  # last good fit, (3, 3)
         # The last frame's background update, ((frame at the compensated model's exposure, its
-        # gain), frame, learn_slowly, rate): deferred to the next frame, where it runs alongside
-        # the motion front end.
+        # gain), frame, learn_slowly, confirmed, rate): deferred to the next frame, where it
+        # runs alongside the motion front end.
         self._pending: Optional[tuple] = None
         self._last: Optional[MotionResult] = None
         self._last_matrix: Optional[np.ndarray] = None  # what the last frame applied
@@ -216,8 +216,8 @@ class MovingCameraEngine(Engine):
         self._last = result
         matrix, status = self._camera_matrix(result, refused)
         applied = self._to_apply(matrix, gray, register=rate == 0.0 and result.motion.ok)
-        score, violation, exposed = self._compare(work, gray, result, matrix, applied, rate,
-                                                  fixed_threshold=refused)
+        score, violation, along, exposed = self._compare(work, gray, result, matrix, applied,
+                                                         rate, fixed_threshold=refused)
         unseen = self.bg.age < self.bg.config.min_age
         if self.roi is not None:  # (what changes outside the region is no new shot)
             unseen = unseen | ~self.roi.at(gray.shape)
@@ -231,7 +231,8 @@ class MovingCameraEngine(Engine):
                                                  compensated_score=score)
             score = score if still_score is None else still_score
         mask = self.persistence.filter(self.fusion.mask(score, violation), matrix)
-        self._pending = (exposed, work, self.fusion.learn_slowly(mask, violation), rate)
+        self._pending = (exposed, work, self.fusion.learn_slowly(mask, violation),
+                         self.fusion.confirmed(mask, violation, along), rate)
         self._prev, self._prev_gray = cur, gray
         self._prev_work = work
         if result.motion.ok:
@@ -283,13 +284,14 @@ class MovingCameraEngine(Engine):
     def _compare(self, work: np.ndarray, gray: np.ndarray, result: MotionResult,
                  matrix: np.ndarray, applied: np.ndarray, rate: float, *,
                  fixed_threshold: bool) -> tuple:
-        """``(score, violation, exposed)``: the background model, warped by ``applied``, scores
-        the frame brought to its exposure (``exposed``, the ``(frame, gain)`` of
+        """``(score, violation, along, exposed)``: the background model, warped by ``applied``,
+        scores the frame brought to its exposure (``exposed``, the ``(frame, gain)`` of
         :func:`match_exposure` with ``match_exposure``, else ``(work, 1.0)``) and the vectors
         of ``result`` give their violation map, while the second thread makes the frames' own
-        evidence from the frames as they came, both against the camera's ``matrix`` (the
-        vectors' with the fixed violation threshold when ``fixed_threshold``: a refused
-        region's vectors are one consistent motion, not noise about the camera's)."""
+        evidence (against the camera, and ``along`` it: the camera evidence, or None) from the
+        frames as they came, both against the camera's ``matrix`` (the vectors' with the fixed
+        violation threshold when ``fixed_threshold``: a refused region's vectors are one
+        consistent motion, not noise about the camera's)."""
         image: list = []
         prev = self._prev_work
 
@@ -307,14 +309,15 @@ class MovingCameraEngine(Engine):
             vectors = self.fusion.vector_evidence(
                 result.points, result.disp, result.evidence_weights, matrix, work.shape[:2],
                 noise_scale=0.0 if fixed_threshold else None)
-        return score, self.fusion.combined(vectors, image[0]), exposed
+        against, along = image[0] if image[0] is not None else (None, None)
+        return score, self.fusion.combined(vectors, against), along, exposed
 
     def _finish_update(self) -> None:
         """Apply the deferred background update of the last frame, if any."""
         if self._pending is not None:
-            (exposed, gain), work, learn_slowly, rate = self._pending
+            (exposed, gain), work, learn_slowly, confirmed, rate = self._pending
             self._pending = None
-            self.bg.update(exposed, learn_slowly, rate, exposure=gain)
+            self.bg.update(exposed, learn_slowly, rate, exposure=gain, confirmed=confirmed)
             if self.still_switch is not None:
                 self.still_switch.update(work, learn_slowly, rate)
 

@@ -146,6 +146,22 @@ def test_an_object_over_background_the_model_has_seen_is_not_healed(seen):
     assert (score[20:40, 30:40].min() > 1) == seen
 
 
+@pytest.mark.parametrize("seen, rate, takes", [
+    (False, -1.0, True),  # the first frame's content, never judged: the frames' motion wins
+    (True, -1.0, False),  # background the model has seen: an object over it stays foreground
+    (False, 0.05, False),  # a caller's rate: the model learns only at that rate
+])
+def test_foreground_confirmed_as_background_replaces_a_model_that_never_saw_it(seen, rate, takes):
+    start = np.full((20, 30, 3), 40, np.uint8)
+    bg = CompensatedBackground()
+    bg.reset(start)
+    bg.update(start, np.zeros((20, 30), bool) if seen else None)
+    now = np.full((20, 30, 3), 200, np.uint8)
+    everywhere = np.ones((20, 30), bool)
+    bg.update(now, everywhere, rate, confirmed=everywhere)
+    assert (bg.score(now).max() < 1.0) == takes
+
+
 def test_a_pixel_is_sensitive_where_its_threshold_is_within_the_limit():
     model = CompensatedBackground(BackgroundConfig(k_sigma=2.0, min_diff=10.0))
     frame = np.zeros((4, 6, 3), np.uint8)

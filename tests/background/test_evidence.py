@@ -6,7 +6,7 @@ import pytest
 
 from conftest import random_texture, shifted
 
-from bgsub.background.evidence import motion_evidence_map, residual_field
+from bgsub.background.evidence import camera_evidence_map, motion_evidence_map, residual_field
 from bgsub.background.fusion import flow_violation_map
 from bgsub.errors import InputError
 
@@ -120,6 +120,28 @@ def test_a_colour_only_difference_counts_in_colour_frames():
                                residual=res).max() < 0.05
 
 
+def test_background_moving_with_the_camera_is_confirmed_where_its_texture_tells():
+    tex = random_texture(H, W, seed=6)
+    prev, cur = tex[:H, :W].copy(), shifted(tex, -3, 0, H, W)
+    prev[:, 64:] = cur[:, 64:] = 120  # a flat half: every motion explains it alike
+    along = camera_evidence_map(prev, cur, _translation(-3.0, 0.0))
+    assert np.median(along[8:-8, 8:56]) > 0.9
+    assert along[:, 72:].max() == 0.0
+
+
+@pytest.mark.parametrize("what", ["still camera", "followed object"])
+def test_nothing_is_confirmed_where_no_motion_explains_the_frame_as_well(what):
+    bg, obj = random_texture(H, W, seed=4), random_texture(32, 32, seed=5)[:32, :32]
+    if what == "still camera":
+        prev, cur, cam = bg[:H, :W], bg[:H, :W].copy(), np.eye(3)
+        region = (slice(8, -8), slice(8, -8))
+    else:
+        prev, cur, cam = bg[:H, :W].copy(), shifted(bg, -3, 0, H, W), _translation(-3.0, 0.0)
+        prev[30:62, 40:72] = cur[30:62, 40:72] = obj  # stays put while the background pans
+        region = (slice(36, 56), slice(46, 66))
+    assert camera_evidence_map(prev, cur, cam)[region].max() == 0.0
+
+
 def test_the_residual_field_is_zero_where_no_vector_reports():
     pts, disp, w = _grid_vectors((1.0, 0.0))
     w[:] = 0
@@ -157,3 +179,27 @@ def test_the_fusion_takes_the_larger_of_the_vectors_and_the_frames_evidence():
     assert both[36:56, 26:46].mean() > 0.7 and both[:, 110:].mean() > 0.9
     off = Fusion(FusionConfig(violation_noise=0.0, image_cue=0.0))
     np.testing.assert_allclose(off.violation(pts, disp, w, cam, prev, cur), vectors, atol=1e-6)
+
+
+@pytest.mark.parametrize("confirm, mover_disputes", [(0.5, True), (0.5, False), (0.0, False)])
+def test_only_undisputed_foreground_moving_with_the_camera_is_confirmed(confirm, mover_disputes):
+    from bgsub.background.fusion import Fusion, FusionConfig
+
+    tex = random_texture(H, W, seed=7)
+    prev, cur = tex[:H, :W], shifted(tex, -3, 0, H, W)  # all background, moving with the camera
+    cam = _translation(-3.0, 0.0)
+    pts, disp, w = _grid_vectors((-3.0, 0.0))
+    if mover_disputes:
+        disp[pts[:, 0] < 64] = (3.0, 0.0)  # the vectors of the left half disagree
+    fusion = Fusion(FusionConfig(violation_noise=0.0, confirm=confirm))
+    violation = fusion.violation(pts, disp, w, cam, prev, cur)
+    along = fusion.image_evidence(pts, disp, w, cam, prev, cur)[1]
+    mask = np.zeros((H, W), np.uint8)
+    mask[20:76, 20:108] = 255  # foreground across both halves
+    confirmed = fusion.confirmed(mask, violation, along)
+    if confirm == 0:
+        assert confirmed is None
+        return
+    assert not confirmed[mask == 0].any()
+    assert confirmed[24:72, 80:104].mean() > 0.9  # undisputed
+    assert confirmed[24:72, 24:56].any() != mover_disputes

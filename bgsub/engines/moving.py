@@ -30,7 +30,7 @@ return an empty mask (or, for a scene cut, restart the model) and say why in ``l
 
 from __future__ import annotations
 
-from typing import Any, Optional, Type
+from typing import Any, NamedTuple, Optional, Type
 
 import cv2
 import numpy as np
@@ -93,6 +93,18 @@ def _to_input(img: np.ndarray, in_shape: tuple, *, binary: bool = False) -> np.n
     return up
 
 
+class _Update(NamedTuple):
+    """A frame's background update, deferred to the next frame (where it runs alongside the
+    motion front end)."""
+
+    exposed: np.ndarray  # the frame at the compensated model's exposure (h, w[, 3]) uint8
+    gain: float  # what the frame was divided by to get there
+    work: np.ndarray  # the frame as it came, for the still-camera model
+    learn_slowly: np.ndarray  # (h, w) bool: Fusion.learn_slowly
+    confirmed: Optional[np.ndarray]  # (h, w) bool: Fusion.confirmed
+    rate: float  # the caller's learning rate
+
+
 class MovingCameraEngine(Engine):
     """A background subtractor for a moving camera, built on the motion front end ``frontend``.
 
@@ -149,10 +161,7 @@ class MovingCameraEngine(Engine):
         self._prev_gray: Optional[np.ndarray] = None
         self._prev_work: Optional[np.ndarray] = None
         self._prev_motion: Optional[np.ndarray] = None  # last good fit, (3, 3)
-        # The last frame's background update, ((frame at the compensated model's exposure, its
-        # gain), frame, learn_slowly, confirmed, rate): deferred to the next frame, where it
-        # runs alongside the motion front end.
-        self._pending: Optional[tuple] = None
+        self._pending: Optional[_Update] = None
         self._last: Optional[MotionResult] = None
         self._last_matrix: Optional[np.ndarray] = None  # what the last frame applied
         self._last_frame: Optional[np.ndarray] = None
@@ -231,8 +240,8 @@ class MovingCameraEngine(Engine):
                                                  compensated_score=score)
             score = score if still_score is None else still_score
         mask = self.persistence.filter(self.fusion.mask(score, violation), matrix)
-        self._pending = (exposed, work, self.fusion.learn_slowly(mask, violation),
-                         self.fusion.confirmed(mask, violation, along), rate)
+        self._pending = _Update(*exposed, work, self.fusion.learn_slowly(mask, violation),
+                                self.fusion.confirmed(mask, violation, along), rate)
         self._prev, self._prev_gray = cur, gray
         self._prev_work = work
         if result.motion.ok:
@@ -315,11 +324,11 @@ class MovingCameraEngine(Engine):
     def _finish_update(self) -> None:
         """Apply the deferred background update of the last frame, if any."""
         if self._pending is not None:
-            (exposed, gain), work, learn_slowly, confirmed, rate = self._pending
-            self._pending = None
-            self.bg.update(exposed, learn_slowly, rate, exposure=gain, confirmed=confirmed)
+            u, self._pending = self._pending, None
+            self.bg.update(u.exposed, u.learn_slowly, u.rate, exposure=u.gain,
+                           confirmed=u.confirmed)
             if self.still_switch is not None:
-                self.still_switch.update(work, learn_slowly, rate)
+                self.still_switch.update(u.work, u.learn_slowly, u.rate)
 
     def _restart(self, work: np.ndarray, gray: np.ndarray, cur: Any = None) -> None:
         self._pending = None

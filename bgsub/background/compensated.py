@@ -260,8 +260,9 @@ class CompensatedBackground:
         rate = self._rate(learning_rate, fg)
         # Judged on the model before this frame's update.
         ghost = self._ghost(f, fg) if learning_rate < 0.0 and fg is not None else None
+        take = None
         if confirmed is not None and learning_rate < 0.0:
-            confirmed = np.asarray(confirmed, bool) & (self.seen < 0.5)
+            take = np.asarray(confirmed, bool) & (self.seen < 0.5)
         r = _per_channel(rate, d.shape[2])
         d2 = np.multiply(d, d) if sq is None else sq
         d *= r
@@ -275,8 +276,8 @@ class CompensatedBackground:
             y0, x0, heal = ghost
             crop = self.mean[y0:y0 + heal.shape[0], x0:x0 + heal.shape[1]]
             crop[heal] = f[y0:y0 + heal.shape[0], x0:x0 + heal.shape[1]][heal]
-        if confirmed is not None and learning_rate < 0.0:
-            self.mean[confirmed] = f[confirmed]
+        if take is not None:
+            self.mean[take] = f[take]
         # Variance of background pixels only (with the clipped residual): a passing object must
         # not inflate the spread and blind the model.
         np.minimum(d2, np.float32((4.0 * p.init_std) ** 2), out=d2)

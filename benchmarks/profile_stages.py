@@ -61,9 +61,9 @@ STAGES = [
     ("bgsub.engines.parts", "StillCameraSwitch.judge", "still-camera model: score"),
     ("bgsub.engines.parts", "StillCameraSwitch.update", "still-camera model: update"),
     ("bgsub.background.fusion", "flow_violation_map", "fusion: flow-violation map"),
-    ("bgsub.background.fusion", "motion_evidence_map", "fusion: the frames' own evidence"),
+    ("bgsub.background.fusion", "frame_evidence", "fusion: the frames' own evidence"),
     ("bgsub.background.fusion", "residual_field", "fusion: the frames' own evidence"),
-    ("bgsub.background.fusion", "Fusion.violation", "fusion: flow-violation map"),
+    ("bgsub.background.fusion", "Fusion.vector_evidence", "fusion: flow-violation map"),
     ("bgsub.background.fusion", "fuse_masks", "fusion: fuse + clean"),
     ("bgsub.background.fusion", "Fusion.learn_slowly", "fusion: fuse + clean"),
 ]

@@ -174,20 +174,44 @@ def _timed(fn) -> float:
     return time.thread_time() - start
 
 
+def read_clip(path: str, n_frames: int) -> tuple:
+    """``(frames, description)``: the first ``n_frames`` frames of the video at ``path`` as one
+    ``(N, H, W, 3) uint8`` array."""
+    import cv2
+
+    cap, frames = cv2.VideoCapture(path), []
+    while len(frames) < n_frames:
+        ok, frame = cap.read()
+        if not ok:
+            break
+        frames.append(frame)
+    cap.release()
+    if len(frames) < 2:
+        sys.exit(f"profile_stages.py: {path}: fewer than two frames could be read")
+    return np.stack(frames), f"{path}"
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", default="320x240", help="frame size WxH")
     ap.add_argument("--frames", type=int, default=100, help="timed frames")
     ap.add_argument("--overlap", type=int, default=0, choices=(0, 1))
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--input", help="profile on this video's frames (at their own size) "
+                                    "instead of the generated clip")
     args = ap.parse_args()
     width, height = (int(v) for v in args.size.lower().split("x"))
 
     from bgsub import create_engine
     from bgsub.evaluation.bench import make_clip
 
-    clip, description = make_clip(width=width, height=height, n_frames=args.frames + 1,
-                                  seed=args.seed)
+    if args.input:
+        clip, description = read_clip(args.input, args.frames + 1)
+        args.size = f"{clip.shape[2]}x{clip.shape[1]}"
+        args.frames = len(clip) - 1
+    else:
+        clip, description = make_clip(width=width, height=height, n_frames=args.frames + 1,
+                                      seed=args.seed)
     engine = create_engine("grbm", overlap=args.overlap)
     timers = Timers()
     instrument(timers, engine.frontend.model)

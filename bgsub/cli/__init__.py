@@ -243,6 +243,12 @@ def _main(argv: Optional[List[str]]) -> int:
     if not getattr(args, "handler", None):
         parser.print_help(sys.stderr)
         return 2
+    if argv is None:
+        # The console script's own process: its reading and writing threads free frames as
+        # fast as the engine does (bgsub.engines.threads.reuse_freed_memory).
+        from bgsub.engines.threads import reuse_freed_memory
+
+        reuse_freed_memory()
     try:
         # The console script (argv None) exits after this: a stop by a signal is final.
         with _stop_once(keep=argv is None):

@@ -168,8 +168,10 @@ def run_input(job: RunJob, should_stop: Optional[StopCheck] = None) -> JobResult
     result is ``interrupted`` (so is Ctrl-C in this process).
     """
     from bgsub.batch.threads import limit_opencv
+    from bgsub.engines.threads import reuse_freed_memory
 
     limit_opencv(job.threads)
+    reuse_freed_memory()  # (a worker process reads and writes frames as `bgsub run` does)
     result = JobResult(job.name, job.input, FAILED, outputs=dict(job.outputs))
     loop_stats: List[Any] = []
     if should_stop is not None and should_stop():  # stopped before this job's turn

@@ -225,6 +225,15 @@ def _dependency_error() -> Optional[str]:
     return None
 
 
+def _silence_stdout(*, final: bool) -> None:
+    """Point the process's stdout at devnull, so that the interpreter's last flush of a stdout
+    that cannot be written does not fail again; only when the process ends after this command
+    (``final``: the console script): a caller of :func:`main` keeps its stdout (under pytest,
+    ``sys.stdout`` is its capture file)."""
+    if final:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+
+
 def _main(argv: Optional[List[str]]) -> int:
     argv_list = sys.argv[1:] if argv is None else list(argv)
     try:
@@ -265,7 +274,7 @@ def _main(argv: Optional[List[str]]) -> int:
     except BrokenPipeError:
         # Output piped into `head` and the like: the reader left, which is not an error of ours.
         # Point stdout at devnull so the interpreter's final flush does not complain again.
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        _silence_stdout(final=argv is None)
         return 0
     except OSError as err:
         # The environment, not a bug: a full disk, a stdout that cannot be written. A name
@@ -273,7 +282,7 @@ def _main(argv: Optional[List[str]]) -> int:
         where = f" ({err.filename})" if err.filename else ""
         print(f"bgsub: error: {err.strerror or err}{where}", file=sys.stderr)
         with contextlib.suppress(OSError):  # the final flush of a full stdout must not fail again
-            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            _silence_stdout(final=argv is None)
         return 2 if err.errno == errno.ENAMETOOLONG else 1
     except Exception as err:  # a bug: say so in one line unless asked for the traceback
         if os.environ.get("BGSUB_DEBUG"):

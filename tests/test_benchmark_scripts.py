@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import write_pan_clip
 
 SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "profile_stages.py"
 
@@ -25,15 +26,7 @@ def test_profile_stages_times_every_stage_it_names():
 
 @pytest.mark.skipif(not SCRIPT.exists(), reason="benchmarks/ is not part of an installed package")
 def test_profile_stages_profiles_a_given_video(tmp_path):
-    import cv2
-
-    from bgsub.samples import SceneSpec, render_frames
-
-    clip = tmp_path / "clip.avi"
-    writer = cv2.VideoWriter(str(clip), cv2.VideoWriter_fourcc(*"MJPG"), 25, (160, 120))
-    for frame in render_frames(SceneSpec("pan", seed=1, width=160, height=120, n_frames=4)):
-        writer.write(frame.image)
-    writer.release()
+    clip = write_pan_clip(tmp_path / "clip.avi", seed=1, n=4, width=160, height=120)
     done = subprocess.run([sys.executable, str(SCRIPT), "--input", str(clip), "--frames", "3"],
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr[-2000:]

@@ -8,11 +8,10 @@ import subprocess
 import sys
 import textwrap
 
-import cv2
 import pytest
+from conftest import write_pan_clip
 
 from bgsub.engines.threads import reuse_freed_memory
-from bgsub.samples import SceneSpec, render_frames
 
 GLIBC = platform.system() == "Linux" and platform.libc_ver()[0] == "glibc"
 
@@ -48,11 +47,7 @@ def test_a_decoded_clip_does_not_fault_its_pages_in_every_frame(tmp_path):
     # Without the settings glibc returned the engine's freed 320x240 arrays to the kernel: 700
     # to 2,400 page faults per frame in this run (5 ms of system time per frame); with them a
     # handful.
-    clip = tmp_path / "pan.avi"
-    writer = cv2.VideoWriter(str(clip), cv2.VideoWriter_fourcc(*"MJPG"), 25, (320, 240))
-    for frame in render_frames(SceneSpec("pan", seed=0, width=320, height=240, n_frames=30)):
-        writer.write(frame.image)
-    writer.release()
+    clip = write_pan_clip(tmp_path / "pan.avi", n=30)
     done = subprocess.run([sys.executable, "-c", _COUNT_FAULTS, str(clip)],
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr[-2000:]

@@ -530,7 +530,7 @@ class _ScriptedReads(GrbmFrontEnd):
         super().__init__(front.config, flow=front.flow)
         self.support, self.calls = support, []
 
-    def read(self, prev, cur, prior, *, finest, fit, stride=None):
+    def read(self, prev, cur, prior, *, finest, fit, stride=None, refine=False):
         self.calls.append((finest, stride))
         return _fake_reading(finest, self.support[finest])
 
@@ -644,10 +644,32 @@ class _RecordedReads(GrbmFrontEnd):
         super().__init__(front.config, flow=front.flow)
         self.seen = []
 
-    def read(self, prev, cur, prior, *, finest, fit, stride=None):
-        reading = super().read(prev, cur, prior, finest=finest, fit=fit, stride=stride)
+    def read(self, prev, cur, prior, *, finest, fit, stride=None, refine=False):
+        reading = super().read(prev, cur, prior, finest=finest, fit=fit, stride=stride,
+                               refine=refine)
         self.seen.append((finest, reading.flow.stride))
         return reading
+
+
+def test_the_final_readout_is_fitted_once_to_its_refined_vectors():
+    """The camera is fitted once per frame, to the final readout's vectors refined to sub-pixel
+    precision (the motion the engine applies fits them), not first to the vectors as read."""
+    eng = _grbm_with_oracle()
+    fits = []
+    fit = eng.fit
+
+    def counted(points, disp, weights, shape):
+        fits.append(np.array(disp, copy=True))
+        return fit(points, disp, weights, shape)
+
+    eng.fit = counted
+    for frame, _ in _frames(n=4):
+        fits.clear()
+        eng.apply(frame)
+    assert eng.last_status == "ok" and len(fits) == 1
+    np.testing.assert_array_equal(fits[0], eng.last_result.disp)
+    read = eng.frontend.last_flow.disp
+    assert not np.array_equal(fits[0], read)  # refined: sub-pixel, not the readout's own
 
 
 def test_coarser_stride_reaches_the_flow_estimate():

@@ -80,11 +80,22 @@ class GrbmConfig:
 
 class Reading(NamedTuple):
     """One readout: the patch motion, the camera motion fitted to it and the fraction of its
-    usable patches that agree with that motion (its support, 0 without a fit)."""
+    usable patches that agree with that motion (its support, 0 without a fit).
+
+    ``refined``: the displacements the motion was fitted to, ``(N, 2) float32``, when they are
+    the readout's refined to sub-pixel precision (None: ``flow.disp`` as read); ``settled``:
+    refining has been tried (what a failed fit to the refined vectors leaves as read)."""
 
     flow: FlowEstimate
     motion: GlobalMotion
     support: float
+    refined: Optional[np.ndarray] = None
+    settled: bool = False
+
+    @property
+    def disp(self) -> np.ndarray:
+        """``(N, 2) float32``: the displacements the motion was fitted to."""
+        return self.flow.disp if self.refined is None else self.refined
 
 
 class GrbmFrontEnd(MotionFrontEnd):
@@ -151,9 +162,12 @@ class GrbmFrontEnd(MotionFrontEnd):
         return max(4.0, self.flow.max_motion / 4)
 
     def read(self, prev: FramePyramid, cur: FramePyramid, prior: Optional[np.ndarray], *,
-             finest: int, fit: CameraFit, stride: Optional[int] = None) -> Reading:
+             finest: int, fit: CameraFit, stride: Optional[int] = None,
+             refine: bool = False) -> Reading:
         """A readout with its final level ``finest``, on a grid of ``stride`` working-size
-        pixels (default ``flow.stride``), started from ``prior`` ((3, 3) or None)."""
+        pixels (default ``flow.stride``), started from ``prior`` ((3, 3) or None); with
+        ``refine``, the camera is fitted to its vectors refined to sub-pixel precision (to
+        them as read when that fit fails)."""
         levels = self.flow.levels
         if prior is not None and levels == 0:
             # The previous frame's motion predicts this one to within a few pixels: two levels
@@ -162,9 +176,10 @@ class GrbmFrontEnd(MotionFrontEnd):
             levels = self.config.prior_levels
         flow = estimate_flow(prev, cur, self._flow_config(levels, finest, stride),
                              model=self.model, prior=prior)
-        motion = fit(flow.centres, flow.disp, flow.weights, cur.shape)
-        used = max(int(np.count_nonzero(flow.weights > 0)), 1)
-        return Reading(flow, motion, motion.n_inliers / used if motion.ok else 0.0)
+        if refine:
+            refined = self._refit(flow, prev, cur, fit)
+            return refined or _fitted(flow, None, fit, cur.shape)._replace(settled=True)
+        return _fitted(flow, None, fit, cur.shape)
 
     def measure(self, prev: FramePyramid, cur: FramePyramid, *, prior: Optional[np.ndarray],
                 fit: CameraFit) -> MotionResult:
@@ -178,23 +193,25 @@ class GrbmFrontEnd(MotionFrontEnd):
             if retry.motion.ok and (not best.motion.ok
                                     or retry.motion.n_inliers > best.motion.n_inliers):
                 best = retry
+        if not best.settled and best.motion.ok:  # (a coarser or retried readout)
+            best = self._refit(best.flow, prev, cur, fit) or best
         self.last_flow = best.flow
-        return self._refined(_result(best), prev, cur, fit)
+        return _result(best)
 
-    def _refined(self, result: MotionResult, prev: FramePyramid, cur: FramePyramid,
-                 fit: CameraFit) -> MotionResult:
-        """``result`` with its usable vectors refined to sub-pixel precision
-        (:func:`~bgsub.motion.refine.refine_vectors` on the working-size frames) and the camera
-        refitted to them; as it was when refinement is off or the refit fails."""
-        c = self.config
-        usable = result.weights > 0
-        if c.refine_window == 0 or not result.motion.ok or not usable.any():
-            return result
-        disp = result.disp.copy()
-        disp[usable] = self._refine(prev.images[0], cur.images[0], result.points[usable],
-                                    result.disp[usable])
-        motion = fit(result.points, disp, result.weights, cur.images[0].shape)
-        return dataclasses.replace(result, disp=disp, motion=motion) if motion.ok else result
+    def _refit(self, flow: FlowEstimate, prev: FramePyramid, cur: FramePyramid,
+               fit: CameraFit) -> Optional[Reading]:
+        """The :class:`Reading` of ``flow`` with its usable vectors refined to sub-pixel
+        precision (:func:`~bgsub.motion.refine.refine_vectors` on the working-size frames)
+        and the camera fitted to them; None when refinement is off, no vector is usable or
+        that fit fails."""
+        usable = flow.weights > 0
+        if self.config.refine_window == 0 or not usable.any():
+            return None
+        disp = flow.disp.copy()
+        disp[usable] = self._refine(prev.images[0], cur.images[0], flow.centres[usable],
+                                    flow.disp[usable])
+        reading = _fitted(flow, disp, fit, cur.images[0].shape)
+        return reading if reading.motion.ok else None
 
     def _coarser_if_blurred(self, prev: FramePyramid, cur: FramePyramid,
                             prior: Optional[np.ndarray], fit: CameraFit) -> Reading:
@@ -208,7 +225,9 @@ class GrbmFrontEnd(MotionFrontEnd):
         a quarter.
         """
         finest = self.flow.finest
-        best = self.read(prev, cur, prior, finest=finest, fit=fit)
+        # The final level's vectors are refined before the camera is fitted to them: one fit,
+        # whose support decides the coarser re-reads.
+        best = self.read(prev, cur, prior, finest=finest, fit=fit, refine=True)
         level = finest
         while (best.support < self.config.coarser_below and level < finest + 2
                and level + 1 < best.flow.levels):
@@ -248,6 +267,17 @@ class GrbmFrontEnd(MotionFrontEnd):
         return self._configs[key]
 
 
+def _fitted(flow: FlowEstimate, refined: Optional[np.ndarray], fit: CameraFit,
+            shape: tuple) -> Reading:
+    """The :class:`Reading` of ``flow`` with the camera fitted to its displacements, or to the
+    ``refined`` ones ``(N, 2) float32`` when given, in a frame of ``shape`` (h, w)."""
+    disp = flow.disp if refined is None else refined
+    motion = fit(flow.centres, disp, flow.weights, shape)
+    used = max(int(np.count_nonzero(flow.weights > 0)), 1)
+    return Reading(flow, motion, motion.n_inliers / used if motion.ok else 0.0, refined,
+                   settled=refined is not None)
+
+
 def _result(reading: Reading) -> MotionResult:
     """The engine's view of a readout; violation evidence also counts textured patches whose
     residual is beyond the model's range (they moved relative to the camera by more than it
@@ -256,7 +286,7 @@ def _result(reading: Reading) -> MotionResult:
     evidence = flow.weights.copy()
     if flow.beyond is not None:
         evidence[flow.beyond] = flow.texture[flow.beyond]
-    return MotionResult(flow.centres, flow.disp, flow.weights, reading.motion, evidence)
+    return MotionResult(flow.centres, reading.disp, flow.weights, reading.motion, evidence)
 
 
 def _load(model: Any, contrast_floor: float) -> Any:

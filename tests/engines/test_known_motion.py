@@ -141,3 +141,18 @@ def test_bad_motion_files_are_refused(tmp_path):
 def test_baselines_take_no_known_motion():
     with pytest.raises(InputError, match="no parameter 'known_motion'"):
         create_engine("mog2", known_motion=_pan())
+
+
+def test_grbm_fits_the_pan_beside_an_object_that_outnumbers_it():
+    """The object holds most of the textured patches, so fewer refined vectors agree with the
+    pan than vectors as read agree with the object: that is no motion blur, and the engine
+    keeps the pan on every frame it measures instead of re-reading coarser levels, where the
+    object dominates."""
+    engine = _engine("grbm")
+    shifts = []
+    for k, (frame, _) in enumerate(_scene()):
+        engine.apply(frame)
+        if k and engine.last_motion is not None:
+            shifts.append(engine.last_motion[0, 2])
+    assert len(shifts) >= N - 4
+    np.testing.assert_allclose(shifts, PAN, atol=0.5)

@@ -652,8 +652,9 @@ class _RecordedReads(GrbmFrontEnd):
 
 
 def test_the_final_readout_is_fitted_once_to_its_refined_vectors():
-    """The camera is fitted once per frame, to the final readout's vectors refined to sub-pixel
-    precision (the motion the engine applies fits them), not first to the vectors as read."""
+    """When the final readout's refined vectors support the camera's motion well, the camera is
+    fitted once, to them (the motion the engine applies fits them), not first to the vectors as
+    read."""
     eng = _grbm_with_oracle()
     fits = []
     fit = eng.fit

@@ -44,7 +44,7 @@ def test_reuse_freed_memory_reports_whether_malloc_took_the_settings():
 
 @pytest.mark.skipif(not GLIBC, reason="the malloc settings are glibc's")
 def test_a_decoded_clip_does_not_fault_its_pages_in_every_frame(tmp_path):
-    # Without the settings glibc returned the engine's freed 320x240 arrays to the kernel: 700
+    # Without the settings glibc returns the engine's freed 320x240 arrays to the kernel: 700
     # to 2,400 page faults per frame in this run (5 ms of system time per frame); with them a
     # handful.
     clip = write_pan_clip(tmp_path / "pan.avi", n=30)

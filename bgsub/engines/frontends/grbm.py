@@ -227,13 +227,12 @@ class GrbmFrontEnd(MotionFrontEnd):
         finest = self.flow.finest
         # The final level's vectors are refined before the camera is fitted to them; when that
         # one fit is well supported (the usual frame) there is nothing more to read.
-        refined = self.read(prev, cur, prior, finest=finest, fit=fit, refine=True)
-        if refined.support >= self.config.coarser_below:
-            return refined
+        final = self.read(prev, cur, prior, finest=finest, fit=fit, refine=True)
+        if final.support >= self.config.coarser_below:
+            return final
         # Judged as read, as the coarser readouts are: where a large object covers much of the
         # frame, its vectors outnumber the camera's among the refined ones, which is no blur.
-        best = refined if refined.refined is None else _fitted(refined.flow, None, fit,
-                                                               cur.shape)
+        best = final if final.refined is None else _fitted(final.flow, None, fit, cur.shape)
         as_read, level = best, finest
         while (best.support < self.config.coarser_below and level < finest + 2
                and level + 1 < best.flow.levels):
@@ -242,7 +241,7 @@ class GrbmFrontEnd(MotionFrontEnd):
                                 stride=self.config.coarser_stride or self.flow.stride)
             if coarser.motion.ok and (coarser.support > best.support or not best.motion.ok):
                 best = coarser
-        return refined if best is as_read else best
+        return final if best is as_read else best
 
     def _refine(self, prev: np.ndarray, cur: np.ndarray, points: np.ndarray,
                 disp: np.ndarray) -> np.ndarray:

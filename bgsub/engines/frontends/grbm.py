@@ -255,13 +255,9 @@ class GrbmFrontEnd(MotionFrontEnd):
                                   window=self.config.refine_window,
                                   within=self.config.refine_within)
 
-        if self.helper is None or self.helper.overlap <= 0 or len(points) < 2:
+        if self.helper is None:
             return refine(slice(None))
-        half = len(points) // 2
-        second: list = []
-        with self.helper.alongside(lambda: second.append(refine(slice(half, None)))):
-            first = refine(slice(None, half))
-        return np.concatenate([first, second[0]])
+        return np.concatenate(self.helper.halves(refine, len(points)))
 
     def _flow_config(self, levels: int, finest: int, stride: Optional[int] = None) -> FlowConfig:
         key = (levels, finest, stride)

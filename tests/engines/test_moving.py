@@ -14,6 +14,7 @@ from bgsub.engines.frontends.grbm import GrbmFrontEnd, Reading
 from bgsub.engines.frontends.lucas_kanade import LucasKanadeFrontEnd
 from bgsub.engines.moving import MovingCameraEngine, work_size
 from bgsub.engines.parts import SMALL_REGION, FrozenModelRegistration, spans_frame
+from bgsub.samples import SceneSpec, render_frames
 from conftest import OracleMatcher, model_path as _model_path, random_texture as _texture, shifted as _shift
 
 
@@ -364,6 +365,31 @@ def test_mask_at_input_size_when_working_smaller():
         assert mask.shape == (180, 240)
         assert set(np.unique(mask)) <= {0, 255}
     assert eng.debug_image().shape == (180, 240, 3)
+
+
+def _f_measure(masks, truths) -> float:
+    """F of (H, W) uint8 masks against sample ground truth (255 = object)."""
+    tp = fp = fn = 0
+    for mask, truth in zip(masks, truths):
+        m, g = mask > 0, truth == 255
+        tp += np.count_nonzero(m & g)
+        fp += np.count_nonzero(m & ~g)
+        fn += np.count_nonzero(~m & g)
+    return 2 * tp / (2 * tp + fp + fn)
+
+
+@pytest.mark.parametrize("name", ["grbm", "compensated"])
+def test_the_mask_of_a_larger_input_follows_the_frame_edges(name):
+    # Worked at half the input's width, the mask is scaled up along the frame's own edges:
+    # closer to the objects' outlines than scaled up bilinearly (edge_radius=0).
+    frames = list(render_frames(SceneSpec(category="jitter", seed=1, n_frames=30)))
+    scores = {}
+    for radius in (8, 0):
+        eng = create_engine(name, work_width=160, edge_radius=radius)
+        masks = [eng.apply(f.image) for f in frames]
+        assert all(m.shape == (240, 320) and set(np.unique(m)) <= {0, 255} for m in masks)
+        scores[radius] = _f_measure(masks[15:], [f.groundtruth for f in frames[15:]])
+    assert scores[8] > scores[0] + 0.02
 
 
 @pytest.mark.parametrize("name", ["compensated", "grbm-oracle"])
@@ -767,7 +793,6 @@ def test_an_engine_mid_video_pickles_and_carries_on_like_the_original(name):
 def test_last_motion_is_the_camera_motion_in_input_pixels(name, work_width):
     """Also when frames are processed at another size: the motion is in the input's pixels."""
     from bgsub.motion.global_motion import corner_error
-    from bgsub.samples import SceneSpec, render_frames
 
     spec = SceneSpec("pan", seed=1, width=320, height=240, n_frames=8)
     engine = create_engine(name, work_width=work_width)

@@ -61,13 +61,13 @@ class EngineConfig:
                                    f"at least {MIN_WORK_WIDTH}), but never to a height below "
                                    f"{MIN_WORK_WIDTH}; the mask is returned at the input size",
                               low=0)
-    edge_radius: int = setting(8, "a mask of frames wider than work_width is scaled up to the "
-                                  "input size along the input frame's own colour edges, by a "
-                                  "guided filter with windows of this radius (working px; 0 = "
-                                  "bilinear upscaling)", low=0, high=64)
+    edge_radius: int = setting(8, "the fused mask is placed on the frame's own colour edges "
+                                  "by a guided filter with windows of this radius (working "
+                                  "px), and scaled up to the input size along them (0 = the "
+                                  "fused mask, scaled up bilinearly)", low=0, high=64)
     edge_eps: float = setting(0.001, "... whose windows with a colour variance (values in "
-                                     "[0, 1]) well below this keep the mask's smooth upscaling",
-                              above=0)
+                                     "[0, 1]) well below this keep the fused mask's mean "
+                                     "rather than follow the frame's edges", above=0)
     threads: int = setting(1, "BLAS and OpenCV worker threads while a frame is processed (0 = "
                               "as configured; more threads are slower for these small frames)",
                            low=0)

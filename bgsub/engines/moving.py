@@ -23,8 +23,8 @@ Each frame, at the working size (``work_width``; the mask is returned at the inp
 6. fusion and clean-up give the mask, less the blobs that touch nothing of the last frame's
    (:class:`~bgsub.engines.parts.BlobPersistence`); the model's update is deferred to the next
    frame, where it runs in the second thread (``overlap=1``) beside the front end;
-7. a mask of an input larger than the working size is scaled up along the input frame's own
-   colour edges (:func:`~bgsub.background.upsampling.guided_upsample`, ``edge_radius``).
+7. the mask is placed on the frame's own colour edges, at the input's size
+   (:func:`~bgsub.background.guided.guided_mask`, ``edge_radius``).
 
 Frames that cannot be processed normally (blank, textureless, a scene cut) never raise: they
 return an empty mask (or, for a scene cut, restart the model) and say why in ``last_status``.
@@ -39,7 +39,7 @@ import numpy as np
 
 from bgsub.background.compensated import BackgroundConfig, CompensatedBackground
 from bgsub.background.fusion import Fusion, FusionConfig
-from bgsub.background.upsampling import guided_upsample
+from bgsub.background.guided import guided_mask
 from bgsub.engines.base import (Engine, Param, check_fgmask, check_frame, check_learning_rate,
                                 opencv_keywords, register_engine)
 from bgsub.engines.config import (MIN_WORK_WIDTH, CameraConfig, EngineConfig,
@@ -192,23 +192,23 @@ class MovingCameraEngine(Engine):
             gray = (smoothed if smoothed.ndim == 2
                     else cv2.cvtColor(smoothed, cv2.COLOR_BGR2GRAY))
             mask = self._step(smoothed, gray, rate)
-            out = self._mask_at_input(mask, work, image)
+            out = self._final_mask(mask, work, image)
         self._last_frame, self._last_mask = work, mask
         if fgmask is not None:
             fgmask[...] = out
             return fgmask
         return out
 
-    def _mask_at_input(self, mask: np.ndarray, work: np.ndarray,
-                       image: np.ndarray) -> np.ndarray:
-        """The working-size ``mask`` at the size of the input ``image``: scaled up along the
-        frame's own edges (:func:`~bgsub.background.upsampling.guided_upsample` with
-        ``work``, the frame at the working size, as its guide) or, with ``edge_radius`` 0,
+    def _final_mask(self, mask: np.ndarray, work: np.ndarray, image: np.ndarray) -> np.ndarray:
+        """The fused working-size ``mask`` as returned: placed on the frame's colour edges at
+        the size of the input ``image`` (:func:`~bgsub.background.guided.guided_mask`, with
+        ``work``, the frame at the working size), or with ``edge_radius`` 0 as it is, scaled up
         bilinearly. ``(H, W) uint8`` 0/255."""
         c = self.config
-        if mask.shape == image.shape[:2] or c.edge_radius == 0:
+        if c.edge_radius == 0:
             return _to_input(mask, image.shape, binary=True)
-        return guided_upsample(mask, work, image, radius=c.edge_radius, eps=c.edge_eps)
+        full = work if work.shape == image.shape else image
+        return guided_mask(mask, work, full, radius=c.edge_radius, eps=c.edge_eps)
 
     def close(self) -> None:
         """Stop the engine's second thread (``overlap=1``) now rather than when the engine is

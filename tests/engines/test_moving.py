@@ -378,18 +378,19 @@ def _f_measure(masks, truths) -> float:
     return 2 * tp / (2 * tp + fp + fn)
 
 
-@pytest.mark.parametrize("name", ["grbm", "compensated"])
-def test_the_mask_of_a_larger_input_follows_the_frame_edges(name):
-    # Worked at half the input's width, the mask is scaled up along the frame's own edges:
-    # closer to the objects' outlines than scaled up bilinearly (edge_radius=0).
+@pytest.mark.parametrize("name, work_width", [("grbm", 320), ("grbm", 160), ("compensated", 160)])
+def test_the_mask_follows_the_frame_edges(name, work_width):
+    # The fused mask is placed on the frame's own edges, at the working size or (worked at
+    # half the input's width) scaled up along them: closer to the objects' outlines than the
+    # fused mask as it is (edge_radius=0).
     frames = list(render_frames(SceneSpec(category="jitter", seed=1, n_frames=30)))
     scores = {}
     for radius in (8, 0):
-        eng = create_engine(name, work_width=160, edge_radius=radius)
+        eng = create_engine(name, work_width=work_width, edge_radius=radius)
         masks = [eng.apply(f.image) for f in frames]
         assert all(m.shape == (240, 320) and set(np.unique(m)) <= {0, 255} for m in masks)
         scores[radius] = _f_measure(masks[15:], [f.groundtruth for f in frames[15:]])
-    assert scores[8] > scores[0] + 0.02
+    assert scores[8] > scores[0] + 0.015
 
 
 @pytest.mark.parametrize("name", ["compensated", "grbm-oracle"])

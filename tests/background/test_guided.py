@@ -1,11 +1,11 @@
-"""The mask scaled up to the input's size along the frame's own edges (guided_upsample)."""
+"""The mask placed on the frame's own edges, at the input's size (guided_mask)."""
 
 from __future__ import annotations
 
 import cv2
 import numpy as np
 
-from bgsub.background.upsampling import guided_upsample
+from bgsub.background.guided import guided_mask
 
 
 def _scene(seed: int = 0, *, ground=70, inside=170) -> tuple:
@@ -33,7 +33,7 @@ def test_the_edges_follow_the_frame_closer_than_bilinear_upscaling():
     frame, truth, small, small_mask = _scene()
     bilinear = np.where(cv2.resize(small_mask, (640, 480), interpolation=cv2.INTER_LINEAR) > 127,
                         255, 0).astype(np.uint8)
-    guided = guided_upsample(small_mask, small, frame, radius=2, eps=1e-3)
+    guided = guided_mask(small_mask, small, frame, radius=2, eps=1e-3)
     assert guided.shape == truth.shape and guided.dtype == np.uint8
     assert set(np.unique(guided)) <= {0, 255}
     # The blocky working-size outline is wrong along the whole boundary; the guided one snaps
@@ -47,15 +47,15 @@ def test_an_object_of_another_colour_but_the_same_gray_is_followed():
     frame, truth, small, small_mask = _scene(ground=(60, 130, 40), inside=(200, 62, 120))
     gray = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
     assert abs(float(gray[truth > 0].mean()) - float(gray[truth == 0].mean())) < 3
-    colour = guided_upsample(small_mask, small, frame, radius=2, eps=1e-3)
-    by_gray = guided_upsample(small_mask, cv2.cvtColor(small, cv2.COLOR_BGR2GRAY), gray,
+    colour = guided_mask(small_mask, small, frame, radius=2, eps=1e-3)
+    by_gray = guided_mask(small_mask, cv2.cvtColor(small, cv2.COLOR_BGR2GRAY), gray,
                               radius=2, eps=1e-3)
     assert _wrong_pixels(colour, truth) < 0.5 * _wrong_pixels(by_gray, truth)
 
 
 def test_an_empty_mask_stays_empty():
     frame, _, small, _ = _scene()
-    out = guided_upsample(np.zeros((120, 160), np.uint8), small, frame, radius=4, eps=0.01)
+    out = guided_mask(np.zeros((120, 160), np.uint8), small, frame, radius=4, eps=0.01)
     assert out.shape == (480, 640) and not out.any()
 
 
@@ -64,7 +64,7 @@ def test_a_mask_over_a_flat_frame_keeps_its_place():
     _, truth, _, small_mask = _scene()
     flat_small = np.full((120, 160), 90, np.uint8)
     flat = np.full((480, 640), 90, np.uint8)
-    out = guided_upsample(small_mask, flat_small, flat, radius=2, eps=0.01)
+    out = guided_mask(small_mask, flat_small, flat, radius=2, eps=0.01)
     assert abs(int(np.count_nonzero(out)) - int(np.count_nonzero(truth))) < 0.05 * np.count_nonzero(
         truth)
     assert _wrong_pixels(out, truth) < 0.1 * np.count_nonzero(truth)

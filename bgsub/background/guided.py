@@ -1,0 +1,136 @@
+"""The mask placed on the frame's own edges, at the input's size: :func:`guided_mask`.
+
+The engines decide foreground at a working size (320 px wide by default) from scores pooled
+over patches and cells and cleaned by morphology, so the fused mask's outline is blocky, and
+scaled up to a larger input it is pixels off the object's edge. :func:`guided_mask` places it on
+the frame's colour edges with the guided filter of He, Sun and Tang (2010), computed at the
+working size and applied at the input's (the "fast" guided filter of He and Sun, 2015): within
+each window of the working-size frame the mask is fitted as a linear function of the colour
+(``mask ~ a . colour + b``, least squares with ridge ``eps``), the coefficients are averaged over
+the windows that hold each pixel, scaled up to the input's size and applied to the input
+frame's own colours; foreground is where the result exceeds one half. Where a window holds an
+edge of the frame, the mask's edge moves onto it; where the frame is flat (colour variance well
+below ``eps``) the mask keeps its local mean.
+
+The filter is linear in the mask and local: pixels farther than ``2 radius`` from the mask's
+foreground come out 0, so only its bounding box, with a margin, is filtered.
+"""
+
+from __future__ import annotations
+
+from typing import List, Optional, Tuple
+
+import cv2
+import numpy as np
+
+__all__ = ["guided_mask"]
+
+
+def guided_mask(mask: np.ndarray, guide: np.ndarray, full_guide: np.ndarray, *,
+                radius: int, eps: float) -> np.ndarray:
+    """``mask`` placed on the frame's edges, at ``full_guide``'s size.
+
+    Parameters
+    ----------
+    mask : (h, w) uint8
+        The mask, 0/255, at the working size.
+    guide : (h, w, 3) or (h, w) uint8
+        The frame the mask was made from (BGR or gray), at the working size.
+    full_guide : (H, W, 3) or (H, W) uint8
+        The same frame at the input size (H >= h, W >= w; ``guide`` itself when the sizes are
+        equal), with ``guide``'s channels.
+    radius : int
+        Window radius of the filter, in working-size pixels (>= 1).
+    eps : float
+        Ridge of the per-window fit, a variance of colour values in [0, 1]: windows whose
+        colours vary much less than this keep the mask's mean instead of following the edges.
+
+    Returns
+    -------
+    (H, W) uint8
+        0/255: foreground where the filtered mask exceeds one half.
+    """
+    box = _box_of(mask, 3 * radius + 2)
+    if box is None:
+        return np.zeros(full_guide.shape[:2], np.uint8)
+    y0, y1, x0, x1 = box
+    a, b = _coefficients(mask[y0:y1, x0:x1], guide[y0:y1, x0:x1], radius, np.float32(eps))
+    if full_guide.shape[:2] == mask.shape:
+        out = np.zeros(mask.shape, np.uint8)
+        out[y0:y1, x0:x1] = _apply(a, b, guide[y0:y1, x0:x1])
+        return out
+    # Scaled up whole: the coefficients are 0 outside the box.
+    h, w = mask.shape
+    planes = []
+    for part in a + [b]:
+        whole = np.zeros((h, w), np.float32)
+        whole[y0:y1, x0:x1] = part
+        planes.append(cv2.resize(whole, (full_guide.shape[1], full_guide.shape[0]),
+                                 interpolation=cv2.INTER_LINEAR))
+    return _apply(planes[:-1], planes[-1], full_guide)
+
+
+def _box_of(mask: np.ndarray, margin: int) -> Optional[Tuple[int, int, int, int]]:
+    """``(y0, y1, x0, x1)``: the bounding box of ``mask``'s foreground grown by ``margin`` and
+    clipped to the mask, or None for an empty mask."""
+    x, y, w, h = cv2.boundingRect(mask)
+    if w == 0 or h == 0:
+        return None
+    rows, cols = mask.shape
+    return (max(0, y - margin), min(rows, y + h + margin),
+            max(0, x - margin), min(cols, x + w + margin))
+
+
+def _coefficients(mask: np.ndarray, guide: np.ndarray, radius: int,
+                  eps: np.float32) -> Tuple[List[np.ndarray], np.ndarray]:
+    """The window-averaged ``(a, b)`` of the fit ``mask ~ a . guide + b``: ``a`` one
+    ``(h, w) float32`` plane per channel of ``guide``, ``b`` one plane."""
+    k = (2 * radius + 1, 2 * radius + 1)
+
+    def box(x: np.ndarray) -> np.ndarray:
+        return cv2.boxFilter(x, -1, k, borderType=cv2.BORDER_REFLECT)
+
+    p = mask.astype(np.float32) * np.float32(1.0 / 255.0)
+    colours = _channels(guide)
+    n = len(colours)
+    means = [box(c) for c in colours]
+    mean_p = box(p)
+    cov = [box(c * p) - m * mean_p for c, m in zip(colours, means)]
+    var = {(i, j): box(colours[i] * colours[j]) - means[i] * means[j]
+           for i in range(n) for j in range(i, n)}
+    a = _ridge_solve(var, cov, eps)
+    b = mean_p
+    for ai, m in zip(a, means):
+        b -= ai * m
+    return [box(ai) for ai in a], box(b)
+
+
+def _apply(a: List[np.ndarray], b: np.ndarray, guide: np.ndarray) -> np.ndarray:
+    """``(H, W) uint8`` 0/255: where ``a . guide + b`` exceeds one half."""
+    out = b.copy()
+    for ai, c in zip(a, _channels(guide)):
+        out += ai * c
+    return np.where(out > np.float32(0.5), np.uint8(255), np.uint8(0))
+
+
+def _channels(image: np.ndarray) -> List[np.ndarray]:
+    """The channels of a uint8 image as float32 planes in [0, 1]."""
+    planes = cv2.split(image) if image.ndim == 3 else [image]
+    return [plane.astype(np.float32) * np.float32(1.0 / 255.0) for plane in planes]
+
+
+def _ridge_solve(var: dict, cov: List[np.ndarray], eps: np.float32) -> List[np.ndarray]:
+    """Per pixel, ``x = (V + eps I)^-1 c`` for the symmetric 1x1 or 3x3 ``V`` (``var[i, j]``,
+    ``i <= j``, ``(h, w) float32`` planes) and the vector ``cov``: the solution's planes, by
+    cofactors (a few array passes, no per-pixel loop)."""
+    if len(cov) == 1:
+        return [cov[0] / (var[0, 0] + eps)]
+    a11, a12, a13 = var[0, 0] + eps, var[0, 1], var[0, 2]
+    a22, a23, a33 = var[1, 1] + eps, var[1, 2], var[2, 2] + eps
+    c11, c12, c13 = a22 * a33 - a23 * a23, a13 * a23 - a12 * a33, a12 * a23 - a13 * a22
+    c22, c23, c33 = a11 * a33 - a13 * a13, a12 * a13 - a11 * a23, a11 * a22 - a12 * a12
+    # V + eps I is positive definite: the determinant is > 0.
+    inv_det = np.float32(1.0) / (a11 * c11 + a12 * c12 + a13 * c13)
+    return [(c11 * cov[0] + c12 * cov[1] + c13 * cov[2]) * inv_det,
+            (c12 * cov[0] + c22 * cov[1] + c23 * cov[2]) * inv_det,
+            (c13 * cov[0] + c23 * cov[1] + c33 * cov[2]) * inv_det]

@@ -66,6 +66,7 @@ STAGES = [
     ("bgsub.background.fusion", "Fusion.vector_evidence", "fusion: flow-violation map"),
     ("bgsub.background.fusion", "fuse_masks", "fusion: fuse + clean"),
     ("bgsub.background.fusion", "Fusion.learn_slowly", "fusion: fuse + clean"),
+    ("bgsub.engines.moving", "guided_mask", "fusion: mask on the frame's edges"),
 ]
 
 

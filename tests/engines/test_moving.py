@@ -143,8 +143,10 @@ def _ghost_clip(n=16, pan=2.0, h=180, w=240, band=True):
 @pytest.mark.parametrize("radius, ghost_stays", [(6, False), (0, True)])
 def test_the_ghost_of_an_object_there_from_the_start_heals(radius, ghost_stays):
     # Over the flat band no vector says the uncovered background moves with the camera, so
-    # only the background around it can heal it (ghost_radius; 0 = off, fg_alpha only).
-    eng = _engine_with("grbm", ghost_radius=radius)
+    # only the background around it can heal it (ghost_radius; 0 = off, fg_alpha only). The
+    # fused mask is judged (edge_radius=0): the textured square shows no colour edge against
+    # the textured ground for the guided filter to place its outline on.
+    eng = _engine_with("grbm", ghost_radius=radius, edge_radius=0)
     for frame, gt in _ghost_clip():
         mask = eng.apply(frame) > 0
     assert (mask & (gt > 0)).sum() > 0.95 * (gt > 0).sum()  # the square itself is kept
@@ -156,8 +158,9 @@ def test_the_ghost_of_an_object_there_from_the_start_heals_where_the_camera_move
         confirm, ghost_stays):
     # Over textured background the uncovered pixels are seen moving with the camera: they are
     # background at once (confirm), not after fg_alpha has learnt them (0 = off). The colour
-    # healing from the ghost's edges (ghost_radius) is off, to see this alone.
-    eng = _engine_with("grbm", ghost_radius=0, confirm=confirm)
+    # healing from the ghost's edges (ghost_radius) is off, to see this alone, and the fused
+    # mask is judged (edge_radius=0, as above).
+    eng = _engine_with("grbm", ghost_radius=0, confirm=confirm, edge_radius=0)
     for frame, gt in _ghost_clip(n=10, band=False):
         mask = eng.apply(frame) > 0
     assert (mask & (gt > 0)).sum() > 0.95 * (gt > 0).sum()
@@ -166,8 +169,9 @@ def test_the_ghost_of_an_object_there_from_the_start_heals_where_the_camera_move
 
 @pytest.mark.parametrize("persist, flash_found", [(4, False), (0, True)])
 def test_a_one_frame_flash_is_no_object(persist, flash_found):
-    # A glint: a bright patch in one frame only, against a moving square that stays.
-    eng = _engine_with("grbm", persist=persist)
+    # A glint: a bright patch in one frame only, against a moving square that stays (the fused
+    # mask judged, edge_radius=0, as above).
+    eng = _engine_with("grbm", persist=persist, edge_radius=0)
     for k, (frame, gt) in enumerate(_ghost_clip(n=12)):
         if k == 11:
             frame[10:40, 150:190] = 255

@@ -54,10 +54,11 @@ def guided_mask(mask: np.ndarray, guide: np.ndarray, full_guide: np.ndarray, *,
     if box is None:
         return np.zeros(full_guide.shape[:2], np.uint8)
     y0, y1, x0, x1 = box
-    a, b = _coefficients(mask[y0:y1, x0:x1], guide[y0:y1, x0:x1], radius, np.float32(eps))
+    colours = _channels(guide[y0:y1, x0:x1])
+    a, b = _coefficients(mask[y0:y1, x0:x1], colours, radius, np.float32(eps))
     if full_guide.shape[:2] == mask.shape:
         out = np.zeros(mask.shape, np.uint8)
-        out[y0:y1, x0:x1] = _apply(a, b, guide[y0:y1, x0:x1])
+        out[y0:y1, x0:x1] = _apply(a, b, colours)
         return out
     # Scaled up whole: the coefficients are 0 outside the box.
     h, w = mask.shape
@@ -67,7 +68,7 @@ def guided_mask(mask: np.ndarray, guide: np.ndarray, full_guide: np.ndarray, *,
         whole[y0:y1, x0:x1] = part
         planes.append(cv2.resize(whole, (full_guide.shape[1], full_guide.shape[0]),
                                  interpolation=cv2.INTER_LINEAR))
-    return _apply(planes[:-1], planes[-1], full_guide)
+    return _apply(planes[:-1], planes[-1], _channels(full_guide))
 
 
 def _box_of(mask: np.ndarray, margin: int) -> Optional[Tuple[int, int, int, int]]:
@@ -81,17 +82,17 @@ def _box_of(mask: np.ndarray, margin: int) -> Optional[Tuple[int, int, int, int]
             max(0, x - margin), min(cols, x + w + margin))
 
 
-def _coefficients(mask: np.ndarray, guide: np.ndarray, radius: int,
+def _coefficients(mask: np.ndarray, colours: List[np.ndarray], radius: int,
                   eps: np.float32) -> Tuple[List[np.ndarray], np.ndarray]:
-    """The window-averaged ``(a, b)`` of the fit ``mask ~ a . guide + b``: ``a`` one
-    ``(h, w) float32`` plane per channel of ``guide``, ``b`` one plane."""
+    """The window-averaged ``(a, b)`` of the fit ``mask ~ a . colours + b`` (``colours``: the
+    guide's ``(h, w) float32`` planes, :func:`_channels`): ``a`` one plane per colour, ``b``
+    one plane."""
     k = (2 * radius + 1, 2 * radius + 1)
 
     def box(x: np.ndarray) -> np.ndarray:
         return cv2.boxFilter(x, -1, k, borderType=cv2.BORDER_REFLECT)
 
     p = mask.astype(np.float32) * np.float32(1.0 / 255.0)
-    colours = _channels(guide)
     n = len(colours)
     means = [box(c) for c in colours]
     mean_p = box(p)
@@ -105,10 +106,10 @@ def _coefficients(mask: np.ndarray, guide: np.ndarray, radius: int,
     return [box(ai) for ai in a], box(b)
 
 
-def _apply(a: List[np.ndarray], b: np.ndarray, guide: np.ndarray) -> np.ndarray:
-    """``(H, W) uint8`` 0/255: where ``a . guide + b`` exceeds one half."""
+def _apply(a: List[np.ndarray], b: np.ndarray, colours: List[np.ndarray]) -> np.ndarray:
+    """``(H, W) uint8`` 0/255: where ``a . colours + b`` exceeds one half."""
     out = b.copy()
-    for ai, c in zip(a, _channels(guide)):
+    for ai, c in zip(a, colours):
         out += ai * c
     return np.where(out > np.float32(0.5), np.uint8(255), np.uint8(0))
 

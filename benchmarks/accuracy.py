@@ -14,7 +14,8 @@ Sets:
   temporal ROI but the first; overall = mean of the families;
 * ``samples``: ``bgsub samples`` scenes rendered in memory (every moving category, seeds 0-2,
   60 frames), F per category over the seeds, mean over the categories (half A = seed 0 and 2,
-  B = seed 1); ``static-samples``: the same for the static category alone.
+  B = seed 1); ``static-samples``: the same for the static category alone. ``--seeds 3 4 5``
+  renders scenes of the same generator that no default was chosen on.
 
 Usage (minutes; two sequences at a time with ``--jobs 2``)::
 
@@ -59,8 +60,10 @@ REAL_FAMILIES = {"CDnet2014": "CDnet", "BMS26": "BMS-26", "UCSD": "UCSD", "DAVIS
 SAMPLE_SEEDS = (0, 1, 2)
 
 
-def sequences(which: str, half: str) -> List[Tuple[str, str]]:
-    """``[(family, path or 'category:seed')]`` of a set's half (``A``, ``B`` or ``all``)."""
+def sequences(which: str, half: str,
+              seeds: Tuple[int, ...] = SAMPLE_SEEDS) -> List[Tuple[str, str]]:
+    """``[(family, path or 'category:seed')]`` of a set's half (``A``, ``B`` or ``all``);
+    ``seeds``: the sample sets' scenes."""
     groups: Dict[str, List[str]] = defaultdict(list)
     if which == "generated":
         for seq in sorted((DATA / "generated").glob("*/*_[0-9]*")):
@@ -73,7 +76,7 @@ def sequences(which: str, half: str) -> List[Tuple[str, str]]:
         from bgsub.samples import CATEGORIES
         for cat in CATEGORIES:
             if (cat == "static") == (which == "static-samples"):
-                groups[cat] = [f"{cat}:{seed}" for seed in SAMPLE_SEEDS]
+                groups[cat] = [f"{cat}:{seed}" for seed in seeds]
     out = []
     for family, members in groups.items():
         for k, member in enumerate(members):
@@ -263,13 +266,16 @@ def main(argv: Optional[List[str]] = None) -> int:
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--match", default="", help="only sequences whose path contains this")
     ap.add_argument("--json", help="also write the figures to this file")
+    ap.add_argument("--seeds", type=int, nargs="+", default=list(SAMPLE_SEEDS),
+                    help="the sample sets' scene seeds (default 0 1 2, the tuned ones; "
+                         "others are scenes no default was chosen on)")
     args = ap.parse_args(argv)
     params = parse_params(args.method, args.param)
     if args.degrade and (args.set not in ("generated", "real") or
                          (args.oracle_camera and args.degrade[0] in ("step", "orbit"))):
         ap.error("--degrade needs --set generated or real (and step or orbit no --oracle-camera)")
     todo = [(args.method, params, fam, m, args.oracle_camera, args.degrade)
-            for fam, m in sequences(args.set, args.half) if args.match in m]
+            for fam, m in sequences(args.set, args.half, tuple(args.seeds)) if args.match in m]
     with multiprocessing.get_context("fork").Pool(args.jobs) as pool:
         results = pool.map(run_sequence, todo, chunksize=1)
     summary = summarise(args.set, results)

@@ -3,6 +3,7 @@ would make ``benchmarks/profile_stages.py`` fail (or time nothing)."""
 
 from __future__ import annotations
 
+import importlib.util
 import subprocess
 import sys
 from pathlib import Path
@@ -31,3 +32,20 @@ def test_profile_stages_profiles_a_given_video(tmp_path):
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.startswith(f"grbm, 160x120, overlap=0, 3 frames of {clip}")
+
+
+ACCURACY = SCRIPT.with_name("accuracy.py")
+
+
+@pytest.mark.skipif(not ACCURACY.exists(), reason="benchmarks/ is not part of an installed package")
+def test_accuracy_renders_the_sample_seeds_it_is_given():
+    spec = importlib.util.spec_from_file_location("accuracy_script", ACCURACY)
+    accuracy = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(accuracy)
+    tuned = accuracy.sequences("samples", "all")
+    fresh = accuracy.sequences("samples", "all", (3, 4, 5))
+    assert {m.split(":")[1] for _, m in tuned} == {"0", "1", "2"}
+    assert {m.split(":")[1] for _, m in fresh} == {"3", "4", "5"}
+    assert {f for f, _ in fresh} == {f for f, _ in tuned}
+    # Halves alternate within each category, as for the tuned seeds.
+    assert {m.split(":")[1] for _, m in accuracy.sequences("samples", "B", (3, 4, 5))} == {"4"}

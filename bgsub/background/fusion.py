@@ -61,6 +61,10 @@ class FusionConfig:
     close: int = setting(9, "morphological closing size (0 or 1 = none)", low=0, high=99)
     fill_holes: int = setting(5000, "holes enclosed by a foreground blob, up to this many "
                                     "working-size pixels, are filled (0 = none)", low=0)
+    learn_close: int = setting(17, "the mask closed by this size (working px) learns at the "
+                                   "foreground rate: the flat inside of an object, missed "
+                                   "because it matches the background, is not learnt into the "
+                                   "model (0 or 1 = the mask as it is)", low=0, high=99)
     heal_below: float = setting(0.25, "background differences where the local motion agrees "
                                       "with the camera (violation below this) are learnt at "
                                       "the normal rate (ghost healing)", low=0)
@@ -167,9 +171,16 @@ class Fusion:
         return (mask > 0) & (along >= self.config.confirm) & (violation < self.config.heal_below)
 
     def learn_slowly(self, mask: np.ndarray, violation: Optional[np.ndarray]) -> np.ndarray:
-        """``(h, w) bool``: the foreground of ``mask``, less where the local motion confidently
-        agrees with the camera's (there a background difference is a ghost, background
-        uncovered since the model learnt an object there: it heals at the normal rate)."""
+        """``(h, w) bool``: the foreground of ``mask`` ((h, w) uint8 0/255) closed by
+        ``learn_close``, less where the local motion confidently agrees with the camera's (there
+        a background difference is a ghost, background uncovered since the model learnt an
+        object there: it heals at the normal rate). The closing keeps a missed flat panel inside
+        an object from being learnt at a young pixel's fast rate, after which it would be
+        background the model has seen, beyond the ghost healing's reach, once the object
+        moves on."""
+        k = self.config.learn_close
+        if k > 1:
+            mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, _kernel(cv2.MORPH_ELLIPSE, k))
         slow = mask > 0
         if violation is not None:
             slow &= ~(violation < self.config.heal_below)

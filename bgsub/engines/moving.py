@@ -103,7 +103,8 @@ class _Update(NamedTuple):
     exposed: np.ndarray  # the frame at the compensated model's exposure (h, w[, 3]) uint8
     gain: float  # what the frame was divided by to get there
     work: np.ndarray  # the frame as it came, for the still-camera model
-    learn_slowly: np.ndarray  # (h, w) bool: Fusion.learn_slowly
+    mask: np.ndarray  # (h, w) uint8 0/255: the frame's mask (the engine's own copy) ...
+    violation: Optional[np.ndarray]  # ... and motion evidence, for Fusion.learn_slowly
     confirmed: Optional[np.ndarray]  # (h, w) bool: Fusion.confirmed
     rate: float  # the caller's learning rate
 
@@ -254,7 +255,8 @@ class MovingCameraEngine(Engine):
                                                  compensated_score=score)
             score = score if still_score is None else still_score
         mask = self.persistence.filter(self.fusion.mask(score, violation), matrix)
-        self._pending = _Update(*exposed, work, self.fusion.learn_slowly(mask, violation),
+        # learn_slowly's closing is left to the update, which the second thread runs.
+        self._pending = _Update(*exposed, work, mask.copy(), violation,
                                 self.fusion.confirmed(mask, violation, along), rate)
         self._prev, self._prev_gray = cur, gray
         self._prev_work = work
@@ -339,10 +341,10 @@ class MovingCameraEngine(Engine):
         """Apply the deferred background update of the last frame, if any."""
         if self._pending is not None:
             u, self._pending = self._pending, None
-            self.bg.update(u.exposed, u.learn_slowly, u.rate, exposure=u.gain,
-                           confirmed=u.confirmed)
+            slow = self.fusion.learn_slowly(u.mask, u.violation)
+            self.bg.update(u.exposed, slow, u.rate, exposure=u.gain, confirmed=u.confirmed)
             if self.still_switch is not None:
-                self.still_switch.update(u.work, u.learn_slowly, u.rate)
+                self.still_switch.update(u.work, slow, u.rate)
 
     def _restart(self, work: np.ndarray, gray: np.ndarray, cur: Any = None) -> None:
         self._pending = None

@@ -103,7 +103,7 @@ class _Update(NamedTuple):
     exposed: np.ndarray  # the frame at the compensated model's exposure (h, w[, 3]) uint8
     gain: float  # what the frame was divided by to get there
     work: np.ndarray  # the frame as it came, for the still-camera model
-    mask: np.ndarray  # (h, w) uint8 0/255: the frame's mask (the engine's own copy) ...
+    mask: np.ndarray  # (h, w) uint8 0/255: the frame's mask, copied (apply may return it) ...
     violation: Optional[np.ndarray]  # ... and motion evidence, for Fusion.learn_slowly
     confirmed: Optional[np.ndarray]  # (h, w) bool: Fusion.confirmed
     rate: float  # the caller's learning rate

@@ -67,6 +67,8 @@ STAGES = [
     ("bgsub.background.fusion", "fuse_masks", "fusion: fuse + clean"),
     ("bgsub.background.fusion", "Fusion.learn_slowly", "fusion: fuse + clean"),
     ("bgsub.engines.moving", "guided_mask", "fusion: mask on the frame's edges"),
+    ("bgsub.background.object_colour", "ObjectColours.grow", "fusion: the objects' colours"),
+    ("bgsub.background.object_colour", "ObjectColours.learn", "fusion: the objects' colours"),
 ]
 
 

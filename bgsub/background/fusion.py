@@ -74,6 +74,14 @@ class FusionConfig:
                                   "evidence, 0-1) and no local motion disputes it: the ghost "
                                   "of an object in the first frame, on textured background "
                                   "(0 = off)", low=0, high=1)
+    grow_radius: int = setting(4, "a blob grows over pixels up to this far (working px) "
+                                  "whose colour is more likely the last frame's objects' than "
+                                  "the background's around them (grow_above): the flat or "
+                                  "background-coloured parts of an object (0 = off)", low=0,
+                               high=64)
+    grow_above: float = setting(0.9, "... where the objects' colours explain a pixel with at "
+                                     "least this posterior probability (equal priors)",
+                                low=0.5, high=1)
     persist: int = setting(4, "a blob is kept only if it overlaps the previous frame's mask, "
                               "moved by the camera and grown by this many working-size px "
                               "(0 = off): what flickers for one frame is not an object", low=0,

@@ -21,7 +21,9 @@ Each frame, at the working size (``work_width``; the mask is returned at the inp
    samples hold each pixel's range of values, and over water a global gain estimate would
    only add the glitter's own fluctuation);
 6. fusion and clean-up give the mask, less the blobs that touch nothing of the last frame's
-   (:class:`~bgsub.engines.parts.BlobPersistence`); the model's update is deferred to the next
+   (:class:`~bgsub.engines.parts.BlobPersistence`), grown over the nearby pixels coloured like
+   the last frame's objects (:class:`~bgsub.background.object_colour.ObjectColours`); the
+   model's update, and the learning of this frame's objects' colours, is deferred to the next
    frame, where it runs in the second thread (``overlap=1``) beside the front end;
 7. the mask is placed on the frame's own colour edges, at the input's size
    (:func:`~bgsub.background.guided.guided_mask`, ``edge_radius``).
@@ -40,6 +42,7 @@ import numpy as np
 from bgsub.background.compensated import BackgroundConfig, CompensatedBackground
 from bgsub.background.fusion import Fusion, FusionConfig
 from bgsub.background.guided import guided_mask
+from bgsub.background.object_colour import ObjectColours
 from bgsub.engines.base import (Engine, Param, check_fgmask, check_frame, check_learning_rate,
                                 opencv_keywords, register_engine)
 from bgsub.engines.config import (MIN_WORK_WIDTH, CameraConfig, EngineConfig,
@@ -127,7 +130,8 @@ class MovingCameraEngine(Engine):
     frontend, config, camera, bg, fusion
         The front end, the engine's and the camera stage's settings, the compensated
         background model and the fusion stage.
-    small_region, hold_back, registration, scene_cut, persistence, still_switch, known_motion
+    small_region, hold_back, registration, scene_cut, persistence, object_colours, still_switch,
+    known_motion
         The special behaviours (:mod:`bgsub.engines.parts`; ``still_switch`` None when
         ``still_model`` is 0, ``known_motion`` None when the camera motion is fitted). The
         region of interest (``roi``, :mod:`bgsub.engines.roi`) also leaves the vectors outside
@@ -153,6 +157,8 @@ class MovingCameraEngine(Engine):
         self.registration = FrozenModelRegistration(cam.motion_model)
         self.scene_cut = SceneCut(c.scene_cut, c.cut_support)
         self.persistence = BlobPersistence(self.fusion.config.persist)
+        self.object_colours = ObjectColours(radius=self.fusion.config.grow_radius,
+                                            above=self.fusion.config.grow_above)
         self.still_switch = (StillCameraSwitch(still_model=c.still_model, still_snr=c.still_snr,
                                                window=c.still_window,
                                                still_versus=c.still_versus)
@@ -255,6 +261,7 @@ class MovingCameraEngine(Engine):
                                                  compensated_score=score)
             score = score if still_score is None else still_score
         mask = self.persistence.filter(self.fusion.mask(score, violation), matrix)
+        mask = self.object_colours.grow(mask, work)
         # learn_slowly's closing is left to the update, which the second thread runs.
         self._pending = _Update(*exposed, work, mask.copy(), violation,
                                 self.fusion.confirmed(mask, violation, along), rate)
@@ -342,6 +349,7 @@ class MovingCameraEngine(Engine):
         if self._pending is not None:
             u, self._pending = self._pending, None
             slow = self.fusion.learn_slowly(u.mask, u.violation)
+            self.object_colours.learn(u.work, u.mask)
             self.bg.update(u.exposed, slow, u.rate, exposure=u.gain, confirmed=u.confirmed)
             if self.still_switch is not None:
                 self.still_switch.update(u.work, slow, u.rate)
@@ -349,6 +357,7 @@ class MovingCameraEngine(Engine):
     def _restart(self, work: np.ndarray, gray: np.ndarray, cur: Any = None) -> None:
         self._pending = None
         self.persistence.reset()
+        self.object_colours.reset()
         self.bg.reset(work)
         self.bg.update(work)
         if self.still_switch is not None:

@@ -27,6 +27,7 @@ import numpy as np
 
 from bgsub.background.evidence import (cell_index, cells_to_pixels, frame_evidence,
                                        residual_field)
+from bgsub.background.morphology import kernel
 from bgsub.errors import InputError
 from bgsub.motion.global_motion import apply_homography
 from bgsub.settings import check_settings, setting
@@ -188,7 +189,7 @@ class Fusion:
         moves on."""
         k = self.config.learn_close
         if k > 1:
-            mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, _kernel(cv2.MORPH_ELLIPSE, k))
+            mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, kernel(cv2.MORPH_ELLIPSE, k))
         slow = mask > 0
         if violation is not None:
             slow &= ~(violation < self.config.heal_below)
@@ -308,9 +309,9 @@ def clean_mask(mask: np.ndarray, *, min_area: int = 30, close: int = 5,
         raise InputError(f"a mask must be (H, W), one value per pixel, not shape {mask.shape}")
     # Work on 0/1 (a bool mask is reinterpreted, not converted) and scale to 0/255 once.
     m = mask.view(np.uint8) if mask.dtype == bool else (mask > 0).view(np.uint8)
-    m = cv2.morphologyEx(m, cv2.MORPH_OPEN, _kernel(cv2.MORPH_RECT, 3))
+    m = cv2.morphologyEx(m, cv2.MORPH_OPEN, kernel(cv2.MORPH_RECT, 3))
     if close > 1:
-        m = cv2.morphologyEx(m, cv2.MORPH_CLOSE, _kernel(cv2.MORPH_ELLIPSE, close))
+        m = cv2.morphologyEx(m, cv2.MORPH_CLOSE, kernel(cv2.MORPH_ELLIPSE, close))
     if min_area > 1 and cv2.countNonZero(m):
         n, labels, stats, _ = cv2.connectedComponentsWithStats(m, connectivity=8)
         small = stats[:, cv2.CC_STAT_AREA] < min_area
@@ -352,7 +353,7 @@ def persistent_blobs(mask: np.ndarray, previous: np.ndarray, matrix: np.ndarray,
     moved = cv2.warpPerspective(previous, np.asarray(matrix, np.float64), (w, h),
                                 flags=cv2.INTER_NEAREST, borderValue=0)
     if radius > 0:
-        moved = cv2.dilate(moved, _kernel(cv2.MORPH_ELLIPSE, 2 * radius + 1))
+        moved = cv2.dilate(moved, kernel(cv2.MORPH_ELLIPSE, 2 * radius + 1))
     n, labels = cv2.connectedComponents(mask, connectivity=8)
     kept = np.zeros(n, bool)
     kept[labels[(moved > 0) & (mask > 0)]] = True
@@ -378,17 +379,6 @@ def _fill_holes(m: np.ndarray, max_area: int) -> None:
         small[0] = False  # label 0: everything that is not a hole
         holes = small[labels].view(np.uint8)
     np.bitwise_or(m, holes, out=m)
-
-
-_KERNELS: dict = {}
-
-
-def _kernel(shape: int, size: int) -> np.ndarray:
-    """A cached structuring element."""
-    key = (shape, size)
-    if key not in _KERNELS:
-        _KERNELS[key] = cv2.getStructuringElement(shape, (size, size))
-    return _KERNELS[key]
 
 
 def fuse_masks(

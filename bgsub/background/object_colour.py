@@ -21,6 +21,8 @@ from typing import Optional
 import cv2
 import numpy as np
 
+from bgsub.background.morphology import kernel
+
 __all__ = ["ObjectColours", "colour_index"]
 
 #: Levels per channel (4,096 bins): nearby shades of one surface share a bin; 8 levels told the
@@ -59,7 +61,7 @@ class ObjectColours:
     radius : int
         How far (working px) beyond the mask a pixel may join it (0 = off).
     above : float
-        The posterior probability of the objects' colour a pixel needs to join, in (0.5, 1).
+        The posterior probability of the objects' colour a pixel needs to join, in [0.5, 1].
     """
 
     def __init__(self, *, radius: int, above: float) -> None:
@@ -79,8 +81,9 @@ class ObjectColours:
             return
         box = _around(mask, _BAND[1] // 2)
         mask, frame = mask[box], frame[box]
-        inner = cv2.erode(mask, _disc(_INNER)) > 0
-        band = cv2.dilate(mask, _disc(_BAND[1])) > cv2.dilate(mask, _disc(_BAND[0]))
+        inner = cv2.erode(mask, kernel(cv2.MORPH_ELLIPSE, _INNER)) > 0
+        outer, gap = (cv2.dilate(mask, kernel(cv2.MORPH_ELLIPSE, k)) for k in reversed(_BAND))
+        band = outer > gap
         if np.count_nonzero(inner) < _MIN_PIXELS or np.count_nonzero(band) < _MIN_PIXELS:
             return
         idx = colour_index(frame)
@@ -98,7 +101,7 @@ class ObjectColours:
         # Nothing beyond the radius of the mask's bounding box can join: work inside it.
         box = _around(mask, self.radius)
         part = mask[box]
-        near = cv2.dilate(part, _disc(2 * self.radius + 1)) > 0
+        near = cv2.dilate(part, kernel(cv2.MORPH_ELLIPSE, 2 * self.radius + 1)) > 0
         likely = self._table[colour_index(frame[box])] > self.above
         joined = ((near & likely) | (part > 0)).view(np.uint8)
         n, labels = cv2.connectedComponents(joined, connectivity=8)
@@ -120,13 +123,3 @@ def _around(mask: np.ndarray, margin: int) -> tuple:
 
 def _normalised(counts: np.ndarray) -> np.ndarray:
     return (counts / max(int(counts.sum()), 1)).astype(np.float32)
-
-
-_DISCS: dict = {}
-
-
-def _disc(size: int) -> np.ndarray:
-    """A cached elliptic structuring element of ``size`` x ``size``."""
-    if size not in _DISCS:
-        _DISCS[size] = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size))
-    return _DISCS[size]

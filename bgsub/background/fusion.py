@@ -25,6 +25,7 @@ from typing import Optional
 import cv2
 import numpy as np
 
+from bgsub.background.edge_holes import fill_edge_holes
 from bgsub.background.evidence import (cell_index, cells_to_pixels, frame_evidence,
                                        residual_field)
 from bgsub.background.morphology import kernel
@@ -83,6 +84,11 @@ class FusionConfig:
     grow_above: float = setting(0.9, "... where the objects' colours explain a pixel with at "
                                      "least this posterior probability (equal priors)",
                                 low=0.5, high=1)
+    hole_share: float = setting(0.5, "regions of the frame that the mask and the frame's edges "
+                                     "enclose together, up to fill_holes pixels, are filled "
+                                     "when the mask holds at least this share of their "
+                                     "boundary: the flat inside of an object its outline "
+                                     "closes (0 = off)", low=0, high=1)
     persist: int = setting(4, "a blob is kept only if it overlaps the previous frame's mask, "
                               "moved by the camera and grown by this many working-size px "
                               "(0 = off): what flickers for one frame is not an object", low=0,
@@ -167,6 +173,13 @@ class Fusion:
         return fuse_masks(score, violation, flow_boost=c.flow_boost, flow_damp=c.flow_damp,
                           threshold=c.threshold, min_area=c.min_area, close=c.close,
                           fill_holes=c.fill_holes)
+
+    def close_by_edges(self, mask: np.ndarray, gray: np.ndarray) -> np.ndarray:
+        """``mask`` ((h, w) uint8 0/255) with the holes it and the edges of ``gray`` ((h, w)
+        uint8, the frame) enclose filled: :func:`~bgsub.background.edge_holes.fill_edge_holes`
+        with ``hole_share``, up to ``fill_holes`` pixels."""
+        c = self.config
+        return fill_edge_holes(mask, gray, share=c.hole_share, max_area=c.fill_holes)
 
     def confirmed(self, mask: np.ndarray, violation: Optional[np.ndarray],
                   along: Optional[np.ndarray]) -> Optional[np.ndarray]:

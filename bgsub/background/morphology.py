@@ -1,4 +1,5 @@
-"""Structuring elements for the masks' morphology, made once per shape and size."""
+"""Structuring elements for the masks' morphology, made once per shape and size, and the box
+around a mask that a local step needs to look at."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import functools
 import cv2
 import numpy as np
 
-__all__ = ["kernel"]
+__all__ = ["kernel", "around"]
 
 
 @functools.lru_cache(maxsize=None)
@@ -16,3 +17,13 @@ def kernel(shape: int, size: int) -> np.ndarray:
     ``cv2.MORPH_ELLIPSE``), cached: the engines use the same few every frame. Do not modify
     it."""
     return cv2.getStructuringElement(shape, (size, size))
+
+
+def around(mask: np.ndarray, margin: int) -> tuple:
+    """The ``(rows, columns)`` slices of ``mask``'s bounding box ((h, w) uint8, non-zero =
+    set) grown by ``margin`` px, within the frame: where a step that reaches at most
+    ``margin`` beyond the mask can change anything."""
+    x, y, w, h = cv2.boundingRect(mask)
+    rows, cols = mask.shape
+    return (slice(max(y - margin, 0), min(y + h + margin, rows)),
+            slice(max(x - margin, 0), min(x + w + margin, cols)))

@@ -21,7 +21,7 @@ from typing import Optional
 import cv2
 import numpy as np
 
-from bgsub.background.morphology import kernel
+from bgsub.background.morphology import around, kernel
 
 __all__ = ["ObjectColours", "colour_index"]
 
@@ -79,7 +79,7 @@ class ObjectColours:
         self._table = None
         if self.radius == 0 or cv2.countNonZero(mask) < _MIN_PIXELS:
             return
-        box = _around(mask, _BAND[1] // 2)
+        box = around(mask, _BAND[1] // 2)
         mask, frame = mask[box], frame[box]
         inner = cv2.erode(mask, kernel(cv2.MORPH_ELLIPSE, _INNER)) > 0
         outer, gap = (cv2.dilate(mask, kernel(cv2.MORPH_ELLIPSE, k)) for k in reversed(_BAND))
@@ -99,7 +99,7 @@ class ObjectColours:
         if self._table is None or not cv2.countNonZero(mask):
             return mask
         # Nothing beyond the radius of the mask's bounding box can join: work inside it.
-        box = _around(mask, self.radius)
+        box = around(mask, self.radius)
         part = mask[box]
         near = cv2.dilate(part, kernel(cv2.MORPH_ELLIPSE, 2 * self.radius + 1)) > 0
         likely = self._table[colour_index(frame[box])] > self.above
@@ -111,14 +111,6 @@ class ObjectColours:
         grown = mask.copy()
         grown[box] = touched[labels].view(np.uint8) * np.uint8(255)
         return grown
-
-
-def _around(mask: np.ndarray, margin: int) -> tuple:
-    """The slices of ``mask``'s bounding box grown by ``margin`` px, within the frame."""
-    x, y, w, h = cv2.boundingRect(mask)
-    rows, cols = mask.shape
-    return (slice(max(y - margin, 0), min(y + h + margin, rows)),
-            slice(max(x - margin, 0), min(x + w + margin, cols)))
 
 
 def _normalised(counts: np.ndarray) -> np.ndarray:

@@ -22,8 +22,9 @@ Each frame, at the working size (``work_width``; the mask is returned at the inp
    only add the glitter's own fluctuation);
 6. fusion and clean-up give the mask, less the blobs that touch nothing of the last frame's
    (:class:`~bgsub.engines.parts.BlobPersistence`), grown over the nearby pixels coloured like
-   the last frame's objects (:class:`~bgsub.background.object_colour.ObjectColours`); the
-   model's update, and the learning of this frame's objects' colours, is deferred to the next
+   the last frame's objects (:class:`~bgsub.background.object_colour.ObjectColours`), with the
+   holes it and the frame's edges enclose filled
+   (:func:`~bgsub.background.edge_holes.fill_edge_holes`); the model's update, and the learning of this frame's objects' colours, is deferred to the next
    frame, where it runs in the second thread (``overlap=1``) beside the front end;
 7. the mask is placed on the frame's own colour edges, at the input's size
    (:func:`~bgsub.background.guided.guided_mask`, ``edge_radius``).
@@ -262,6 +263,7 @@ class MovingCameraEngine(Engine):
             score = score if still_score is None else still_score
         mask = self.persistence.filter(self.fusion.mask(score, violation), matrix)
         mask = self.object_colours.grow(mask, work)
+        mask = self.fusion.close_by_edges(mask, gray)
         # learn_slowly's closing is left to the update, which the second thread runs.
         self._pending = _Update(*exposed, work, mask.copy(), violation,
                                 self.fusion.confirmed(mask, violation, along), rate)

@@ -69,6 +69,7 @@ STAGES = [
     ("bgsub.engines.moving", "guided_mask", "fusion: mask on the frame's edges"),
     ("bgsub.background.object_colour", "ObjectColours.grow", "fusion: the objects' colours"),
     ("bgsub.background.object_colour", "ObjectColours.learn", "fusion: the objects' colours"),
+    ("bgsub.background.fusion", "Fusion.close_by_edges", "fusion: holes the edges close"),
 ]
 
 

@@ -24,8 +24,9 @@ Each frame, at the working size (``work_width``; the mask is returned at the inp
    (:class:`~bgsub.engines.parts.BlobPersistence`), grown over the nearby pixels coloured like
    the last frame's objects (:class:`~bgsub.background.object_colour.ObjectColours`), with the
    holes it and the frame's edges enclose filled
-   (:func:`~bgsub.background.edge_holes.fill_edge_holes`); the model's update, and the learning of this frame's objects' colours, is deferred to the next
-   frame, where it runs in the second thread (``overlap=1``) beside the front end;
+   (:func:`~bgsub.background.edge_holes.fill_edge_holes`); the model's update, and the learning
+   of this frame's objects' colours, is deferred to the next frame, where it runs in the second
+   thread (``overlap=1``) beside the front end;
 7. the mask is placed on the frame's own colour edges, at the input's size
    (:func:`~bgsub.background.guided.guided_mask`, ``edge_radius``).
 

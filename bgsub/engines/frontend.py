@@ -113,9 +113,6 @@ class MotionFrontEnd(ABC):
     config_type: ClassVar[Optional[type]] = None
     #: Defaults of the engine's stage settings (by field name) that this front end replaces.
     stage_defaults: ClassVar[Mapping[str, Any]] = {}
-    #: The engine's second thread (:class:`~bgsub.engines.threads.SecondThread`), lent for
-    #: work inside :meth:`measure` that splits in two; None: all of it in the calling thread.
-    helper: Optional[Any] = None
 
     def __init__(self, config: Any = None) -> None:
         if config is None and self.config_type is not None:

@@ -166,7 +166,6 @@ class MovingCameraEngine(Engine):
                                                still_versus=c.still_versus)
                              if c.still_model > 0 else None)
         self.thread = SecondThread(overlap=c.overlap, name=self.name)
-        frontend.helper = self.thread
         self.known_motion = known_motion
         self.last_status = "ok"
         self._prev: Any = None  # the previous frame as the front end keeps it

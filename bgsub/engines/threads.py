@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import concurrent.futures
 import contextlib
-from typing import Any, Callable, Iterator, List, Optional
+from typing import Any, Callable, Iterator, Optional
 
 import cv2
 import numpy as np
@@ -183,20 +183,6 @@ class SecondThread:
         error = future.exception()
         if error is not None:
             raise error
-
-    def halves(self, work: Callable[[slice], Any], n: int) -> List[Any]:
-        """``work`` over consecutive parts of ``range(n)``, in order: ``[work(slice(0, n // 2)),
-        work(slice(n // 2, n))]``, the second half in the second thread while the first runs in
-        the calling one (``overlap=1``); ``[work(slice(0, n))]`` in the calling thread when
-        ``overlap`` is 0 or ``n < 2``. For work on ``n`` rows each computed on its own, so that
-        the split changes no result."""
-        half = n // 2
-        if self.overlap <= 0 or half == 0:
-            return [work(slice(0, n))]
-        second: list = []
-        with self.alongside(lambda: second.append(work(slice(half, n)))):
-            first = work(slice(0, half))
-        return [first, second[0]]
 
     def close(self) -> None:
         """Stop the thread now rather than when the engine is garbage-collected; a later

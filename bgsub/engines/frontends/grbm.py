@@ -245,19 +245,14 @@ class GrbmFrontEnd(MotionFrontEnd):
 
     def _refine(self, prev: np.ndarray, cur: np.ndarray, points: np.ndarray,
                 disp: np.ndarray) -> np.ndarray:
-        """:func:`~bgsub.motion.refine.refine_vectors` of ``(N, 2)`` ``points`` / ``disp``,
-        half of them in the engine's second thread when it lends one (each vector is refined
-        on its own, so the split changes no result)."""
-        prev, cur = as_uint8(prev), as_uint8(cur)  # once, not in each half
+        """:func:`~bgsub.motion.refine.refine_vectors` of ``(N, 2)`` ``points`` / ``disp``.
 
-        def refine(part: slice) -> np.ndarray:
-            return refine_vectors(prev, cur, points[part], disp[part],
-                                  window=self.config.refine_window,
-                                  within=self.config.refine_within)
-
-        if self.helper is None:
-            return refine(slice(None))
-        return np.concatenate(self.helper.halves(refine, len(points)))
+        In the calling thread: the engine's second thread is busy with the last frame's update
+        and this frame's preparation when the vectors are refined, and half of them handed to
+        it waited for those (``docs/BENCHMARKS.md``)."""
+        return refine_vectors(as_uint8(prev), as_uint8(cur), points, disp,
+                              window=self.config.refine_window,
+                              within=self.config.refine_within)
 
     def _flow_config(self, levels: int, finest: int, stride: Optional[int] = None) -> FlowConfig:
         key = (levels, finest, stride)

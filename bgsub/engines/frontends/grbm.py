@@ -247,9 +247,9 @@ class GrbmFrontEnd(MotionFrontEnd):
                 disp: np.ndarray) -> np.ndarray:
         """:func:`~bgsub.motion.refine.refine_vectors` of ``(N, 2)`` ``points`` / ``disp``.
 
-        In the calling thread: the engine's second thread is busy with the last frame's update
-        and this frame's preparation when the vectors are refined, and half of them handed to
-        it waited for those (``docs/BENCHMARKS.md``)."""
+        In the calling thread: when the vectors are refined, the engine's second thread is
+        still busy with the last frame's update and this frame's preparation, so work handed
+        to it would wait for those (``docs/BENCHMARKS.md``)."""
         return refine_vectors(as_uint8(prev), as_uint8(cur), points, disp,
                               window=self.config.refine_window,
                               within=self.config.refine_within)

@@ -10,7 +10,7 @@ from bgsub.motion.global_motion import GlobalMotion, corner_error
 from bgsub.background.compensated import CompensatedBackground
 from bgsub.engines.config import EngineConfig
 from bgsub.engines.frontend import MotionResult
-from bgsub.engines.frontends.grbm import GrbmFrontEnd, Reading
+from bgsub.engines.frontends.grbm import GrbmFrontEnd, Reading, RetryWait
 from bgsub.engines.frontends.lucas_kanade import LucasKanadeFrontEnd
 from bgsub.engines.moving import MovingCameraEngine, work_size
 from bgsub.engines.parts import SMALL_REGION, FrozenModelRegistration, spans_frame
@@ -542,34 +542,102 @@ def test_grbm_step_restores_thread_settings():
         cv2.setNumThreads(saved)
 
 
-def _fake_reading(finest, support):
+def _fake_reading(finest, support, levels=3):
     from types import SimpleNamespace
 
     n = 10
-    flow = SimpleNamespace(levels=3, finest=finest, centres=np.zeros((n, 2), np.float32),
+    flow = SimpleNamespace(levels=levels, finest=finest, centres=np.zeros((n, 2), np.float32),
                            disp=np.zeros((n, 2), np.float32), weights=np.ones(n, np.float32),
                            texture=np.ones(n, np.float32), beyond=None)
     return Reading(flow, GlobalMotion(np.eye(3), np.ones(n, bool), True, "ok"), support)
 
 
 class _ScriptedReads(GrbmFrontEnd):
-    """The grbm front end with its readouts replaced by ones of a given support per level;
-    records each readout's ``(finest, stride)``."""
+    """The grbm front end with its readouts replaced by ones of a given support per level of
+    the full pyramid, and ``reduced`` on the reduced one (a one-level reading); records each
+    full-pyramid readout's ``(finest, stride)`` and counts the reduced ones."""
 
-    def __init__(self, support, **params):
+    def __init__(self, support, reduced=0.0, **params):
         front = GrbmFrontEnd.from_params(model=OracleMatcher(), **params)
         super().__init__(front.config, flow=front.flow)
-        self.support, self.calls = support, []
+        self.support, self.reduced, self.calls, self.reduced_reads = support, reduced, [], 0
 
-    def read(self, prev, cur, prior, *, finest, fit, stride=None, refine=False):
+    def read(self, prev, cur, prior, *, finest, fit, levels=None, stride=None, refine=False):
+        if levels is not None:
+            self.reduced_reads += 1
+            return _fake_reading(finest, self.reduced, levels=levels)
         self.calls.append((finest, stride))
         return _fake_reading(finest, self.support[finest])
 
 
-def _measure_once(frontend):
+def _measure_once(frontend, prior=None):
     frame = frontend.frame_data(np.zeros((60, 80), np.uint8))
     engine = MovingCameraEngine(frontend)
-    frontend.measure(frame, frame, prior=None, fit=engine.fit)
+    frontend.measure(frame, frame, prior=prior, fit=engine.fit)
+
+
+def test_a_well_supported_reduced_readout_is_the_only_one():
+    """With the previous frame's motion as prior, a readout of the reduced pyramid that
+    ``retry_below`` of its patches support is kept, and the full pyramid is not read."""
+    frontend = _ScriptedReads({0: 0.9, 1: 0.9, 2: 0.9}, reduced=0.8, retry_below=0.6)
+    for _ in range(3):
+        _measure_once(frontend, prior=np.eye(3))
+    assert frontend.reduced_reads == 3 and frontend.calls == []
+    assert frontend.last_flow.levels == 1
+
+
+def test_a_poorly_supported_reduced_readout_gives_way_to_the_full_pyramid():
+    frontend = _ScriptedReads({0: 0.9, 1: 0.9, 2: 0.9}, reduced=0.5, retry_below=0.6)
+    _measure_once(frontend, prior=np.eye(3))
+    assert frontend.reduced_reads == 1 and frontend.calls == [(0, None)]
+    assert frontend.last_flow.levels == 3
+
+
+@pytest.mark.parametrize("params, prior", [
+    ({"prior_levels": 0}, np.eye(3)),  # off
+    ({}, None),                        # no previous motion (a first pair, a restart)
+])
+def test_without_a_prior_or_with_prior_levels_0_only_the_full_pyramid_is_read(params, prior):
+    frontend = _ScriptedReads({0: 0.9, 1: 0.9, 2: 0.9}, reduced=0.9, **params)
+    _measure_once(frontend, prior=prior)
+    assert frontend.reduced_reads == 0 and frontend.calls == [(0, None)]
+
+
+@pytest.mark.parametrize("retry_wait, tried", [
+    (4, [1, 0, 1, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]),  # waits 1, 2, 4, 4
+    (0, [1] * 16),                                          # every frame
+])
+def test_refused_reduced_readouts_are_tried_again_after_a_growing_wait(retry_wait, tried):
+    frontend = _ScriptedReads({0: 0.9, 1: 0.9, 2: 0.9}, reduced=0.3, retry_wait=retry_wait)
+    seen = []
+    for _ in range(len(tried)):
+        before = frontend.reduced_reads
+        _measure_once(frontend, prior=np.eye(3))
+        seen.append(frontend.reduced_reads - before)
+    assert seen == tried
+
+
+def test_an_accepted_reduced_readout_resets_the_wait():
+    wait = RetryWait(8)
+    for accepted in (False, False, True, False):
+        while not wait.due():
+            pass
+        wait.record(accepted)
+    assert [wait.due(), wait.due()] == [False, True]  # one frame's wait again, not four
+
+
+def test_a_steady_pan_is_read_on_the_reduced_pyramid():
+    """The shipped model on a steady pan: after the first pair, every frame is read on the
+    finest level alone, pre-warped by the previous frame's motion, and the camera's motion is
+    still found."""
+    eng = create_engine("grbm", model=_model_path())
+    levels = []
+    for frame, _ in _frames(n=6, square=False):
+        eng.apply(frame)
+        if eng.frontend.last_flow is not None:
+            levels.append(eng.frontend.last_flow.levels)
+            np.testing.assert_allclose(eng.last_motion[:2, 2], [-4.0, 0.0], atol=0.25)
+    assert levels[0] > 1 and set(levels[1:]) == {1}
 
 
 @pytest.mark.parametrize("coarser_below, expected, read", [
@@ -675,9 +743,9 @@ class _RecordedReads(GrbmFrontEnd):
         super().__init__(front.config, flow=front.flow)
         self.seen = []
 
-    def read(self, prev, cur, prior, *, finest, fit, stride=None, refine=False):
-        reading = super().read(prev, cur, prior, finest=finest, fit=fit, stride=stride,
-                               refine=refine)
+    def read(self, prev, cur, prior, *, finest, fit, levels=None, stride=None, refine=False):
+        reading = super().read(prev, cur, prior, finest=finest, fit=fit, levels=levels,
+                               stride=stride, refine=refine)
         self.seen.append((finest, reading.flow.stride))
         return reading
 
@@ -724,8 +792,7 @@ def _engine_with(name, **params):
 
 @pytest.mark.parametrize("name", ["grbm", "compensated"])
 def test_the_second_thread_changes_no_mask(name):
-    """overlap=1 (background update, next-frame preparation and half of the vectors'
-    refinement in a second thread) gives the vectors, masks and background of overlap=0,
+    """overlap=1 (background update and next-frame preparation in a second thread) gives the vectors, masks and background of overlap=0,
     frame for frame."""
     frames = [f for f, _ in _frames(n=8)]
     one, two = _engine_with(name, overlap=0), _engine_with(name, overlap=1)

@@ -1,7 +1,8 @@
 """The gated RBM's motion front end (the ``grbm`` engine, the paper's method): patch
 displacements read off the factored 3-way RBM coarse to fine
 (:func:`bgsub.motion.flowfield.estimate_flow`), re-read coarser where the final level is poorly
-supported (motion blur) and from scratch where the previous motion misled it."""
+supported (motion blur); by default only the finest level, pre-warped by the previous frame's
+motion, while that reads well (:class:`RetryWait`)."""
 
 from __future__ import annotations
 
@@ -22,7 +23,7 @@ from bgsub.motion.global_motion import GlobalMotion
 from bgsub.motion.refine import MIN_REFINE_WINDOW, as_uint8, refine_vectors
 from bgsub.settings import check_settings, config_params, setting
 
-__all__ = ["GrbmConfig", "GrbmFrontEnd", "GRBM_TUNED", "FLOW_PARAMS", "Reading"]
+__all__ = ["GrbmConfig", "GrbmFrontEnd", "GRBM_TUNED", "FLOW_PARAMS", "Reading", "RetryWait"]
 
 # The gated RBM's flow-violation evidence is dense but noisier than tracked corners: weakly
 # textured object patches read the camera's motion and would damp true objects, so its engine
@@ -57,8 +58,9 @@ class GrbmConfig:
     coarser_stride: int = setting(16, "patch grid step (working-size pixels) of those coarser "
                                       "readouts (0 = stride): 2 x stride is as dense in a "
                                       "half-size image as stride in the full one", low=0)
-    prior_levels: int = setting(0, "pyramid levels used when the previous frame's motion "
-                                    "predicts this one (0 = always the full pyramid)", low=0)
+    prior_levels: int = setting(1, "pyramid levels read, pre-warped by the previous frame's "
+                                    "motion, before the full pyramid (0 = always the full "
+                                    "pyramid)", low=0)
     refine_window: int = setting(13, "side (working-size px) of the window in which each "
                                      "vector is refined to sub-pixel precision by Lucas-Kanade "
                                      "iterations before the camera fit (the patch size; 0 = "
@@ -67,15 +69,45 @@ class GrbmConfig:
                                         "from the gated RBM's reading keeps the reading",
                                    above=0)
     retry_below: float = setting(0.6, "with prior_levels > 0: when fewer than this fraction of "
-                                      "the patches agree with the motion found from the "
-                                      "previous frame's, also search with the full pyramid",
+                                      "the patches agree with the motion read on the reduced "
+                                      "pyramid, the frame is read with the full one",
                                  low=0)
+    retry_wait: int = setting(32, "after a reduced readout fails, the next 1, 2, 4, ... (at "
+                                  "most this many) frames are read with the full pyramid "
+                                  "only (0 = try the reduced pyramid every frame)", low=0)
 
     def __post_init__(self) -> None:
         check_settings(self)
         if 0 < self.refine_window < MIN_REFINE_WINDOW:
             raise InputError(f"parameter 'refine_window' must be 0 (no refinement) or at least "
                              f"{MIN_REFINE_WINDOW}, not {self.refine_window!r}")
+
+
+class RetryWait:
+    """When to try the reduced pyramid: every frame while its readouts are accepted; after a
+    refusal, not for the next 1, 2, 4, ... frames (at most ``longest``). Footage the finest
+    level cannot read alone (blur, a shaking camera, water) then costs a probe every
+    ``longest`` frames instead of a wasted readout every frame."""
+
+    def __init__(self, longest: int) -> None:
+        self.longest = int(longest)
+        self._wait = 0  # frames still to read with the full pyramid
+        self._next = 1  # the wait after the next refusal
+
+    def due(self) -> bool:
+        """Whether this frame tries the reduced pyramid (counts the frame)."""
+        if self._wait > 0:
+            self._wait -= 1
+            return False
+        return True
+
+    def record(self, accepted: bool) -> None:
+        """The outcome of a try."""
+        if accepted:
+            self._next = 1
+        else:
+            self._wait = min(self._next, self.longest)
+            self._next = min(2 * self._next, max(self.longest, 1))
 
 
 class Reading(NamedTuple):
@@ -119,6 +151,7 @@ class GrbmFrontEnd(MotionFrontEnd):
         self.flow = dataclasses.replace(flow or FlowConfig(), warn_range=False)
         self.model = _load(self.config.model, self.config.contrast_floor)
         self.last_flow: Optional[FlowEstimate] = None
+        self._retry = RetryWait(self.config.retry_wait)
         self._configs: Dict[tuple, FlowConfig] = {}
 
     @classmethod
@@ -162,18 +195,14 @@ class GrbmFrontEnd(MotionFrontEnd):
         return max(4.0, self.flow.max_motion / 4)
 
     def read(self, prev: FramePyramid, cur: FramePyramid, prior: Optional[np.ndarray], *,
-             finest: int, fit: CameraFit, stride: Optional[int] = None,
-             refine: bool = False) -> Reading:
+             finest: int, fit: CameraFit, levels: Optional[int] = None,
+             stride: Optional[int] = None, refine: bool = False) -> Reading:
         """A readout with its final level ``finest``, on a grid of ``stride`` working-size
-        pixels (default ``flow.stride``), started from ``prior`` ((3, 3) or None); with
-        ``refine``, the camera is fitted to its vectors refined to sub-pixel precision (to
-        them as read when that fit fails)."""
-        levels = self.flow.levels
-        if prior is not None and levels == 0:
-            # The previous frame's motion predicts this one to within a few pixels: two levels
-            # cover that; a camera that changes course fails the support test and is retried
-            # with the full pyramid.
-            levels = self.config.prior_levels
+        pixels (default ``flow.stride``), over ``levels`` pyramid levels (default
+        ``flow.levels``), started from ``prior`` ((3, 3) or None); with ``refine``, the camera
+        is fitted to its vectors refined to sub-pixel precision (to them as read when that fit
+        fails)."""
+        levels = self.flow.levels if levels is None else levels
         flow = estimate_flow(prev, cur, self._flow_config(levels, finest, stride),
                              model=self.model, prior=prior)
         if refine:
@@ -183,20 +212,29 @@ class GrbmFrontEnd(MotionFrontEnd):
 
     def measure(self, prev: FramePyramid, cur: FramePyramid, *, prior: Optional[np.ndarray],
                 fit: CameraFit) -> MotionResult:
-        best = self._coarser_if_blurred(prev, cur, prior, fit)
-        reduced = self.flow.levels == 0 and self.config.prior_levels > 0
-        if prior is not None and reduced and not (best.motion.ok
-                                                  and best.support >= self.config.retry_below):
-            # The prior may be wrong (the camera changed course): also try from scratch and
-            # keep the reading more patches agree with.
-            retry = self.read(prev, cur, None, finest=self.flow.finest, fit=fit)
-            if retry.motion.ok and (not best.motion.ok
-                                    or retry.motion.n_inliers > best.motion.n_inliers):
-                best = retry
-        if not best.settled and best.motion.ok:  # (a coarser or retried readout)
+        best = self._reduced(prev, cur, prior, fit)
+        if best is None:
+            best = self._coarser_if_blurred(prev, cur, prior, fit)
+        if not best.settled and best.motion.ok:  # (a coarser readout)
             best = self._refit(best.flow, prev, cur, fit) or best
         self.last_flow = best.flow
         return _result(best)
+
+    def _reduced(self, prev: FramePyramid, cur: FramePyramid, prior: Optional[np.ndarray],
+                 fit: CameraFit) -> Optional[Reading]:
+        """The readout of the reduced pyramid (``prior_levels``, pre-warped by ``prior``) when
+        it is due and well supported, else None: the frame is then read as without it."""
+        reduce = prior is not None and self.flow.levels == 0 and self.config.prior_levels > 0
+        if not (reduce and self._retry.due()):
+            return None
+        # The previous frame's motion predicts this one to within a few pixels, which the
+        # finest level reads. A camera that changes course, or blur the finest level cannot
+        # read, fails the support test.
+        reading = self.read(prev, cur, prior, finest=self.flow.finest, fit=fit,
+                            levels=self.config.prior_levels, refine=True)
+        accepted = reading.motion.ok and reading.support >= self.config.retry_below
+        self._retry.record(accepted)
+        return reading if accepted else None
 
     def _refit(self, flow: FlowEstimate, prev: FramePyramid, cur: FramePyramid,
                fit: CameraFit) -> Optional[Reading]:

@@ -555,16 +555,20 @@ def _fake_reading(finest, support, levels=3):
 class _ScriptedReads(GrbmFrontEnd):
     """The grbm front end with its readouts replaced by ones of a given support per level of
     the full pyramid, and ``reduced`` on the reduced one (a one-level reading); records each
-    full-pyramid readout's ``(finest, stride)`` and counts the reduced ones."""
+    full-pyramid readout's ``(finest, stride)`` and each reduced one's ``(finest, levels)``."""
 
     def __init__(self, support, reduced=0.0, **params):
         front = GrbmFrontEnd.from_params(model=OracleMatcher(), **params)
         super().__init__(front.config, flow=front.flow)
-        self.support, self.reduced, self.calls, self.reduced_reads = support, reduced, [], 0
+        self.support, self.reduced, self.calls, self.reduced_calls = support, reduced, [], []
+
+    @property
+    def reduced_reads(self):
+        return len(self.reduced_calls)
 
     def read(self, prev, cur, prior, *, finest, fit, levels=None, stride=None, refine=False):
         if levels is not None:
-            self.reduced_reads += 1
+            self.reduced_calls.append((finest, levels))
             return _fake_reading(finest, self.reduced, levels=levels)
         self.calls.append((finest, stride))
         return _fake_reading(finest, self.support[finest])
@@ -615,6 +619,14 @@ def test_refused_reduced_readouts_are_tried_again_after_a_growing_wait(retry_wai
         _measure_once(frontend, prior=np.eye(3))
         seen.append(frontend.reduced_reads - before)
     assert seen == tried
+
+
+def test_the_reduced_pyramid_ends_at_the_final_level():
+    """``prior_levels`` counts levels from the final one up: with ``finest=1`` the reduced
+    readout reads level 1 (two levels of the pyramid, the full-size one not read)."""
+    frontend = _ScriptedReads({1: 0.9, 2: 0.9}, reduced=0.9, finest=1)
+    _measure_once(frontend, prior=np.eye(3))
+    assert frontend.reduced_calls == [(1, 2)] and frontend.calls == []
 
 
 def test_an_accepted_reduced_readout_resets_the_wait():

@@ -58,9 +58,9 @@ class GrbmConfig:
     coarser_stride: int = setting(16, "patch grid step (working-size pixels) of those coarser "
                                       "readouts (0 = stride): 2 x stride is as dense in a "
                                       "half-size image as stride in the full one", low=0)
-    prior_levels: int = setting(1, "pyramid levels read, pre-warped by the previous frame's "
-                                    "motion, before the full pyramid (0 = always the full "
-                                    "pyramid)", low=0)
+    prior_levels: int = setting(1, "pyramid levels read from the final one up, pre-warped "
+                                    "by the previous frame's motion, before the full pyramid "
+                                    "(0 = always the full pyramid)", low=0)
     refine_window: int = setting(13, "side (working-size px) of the window in which each "
                                      "vector is refined to sub-pixel precision by Lucas-Kanade "
                                      "iterations before the camera fit (the patch size; 0 = "
@@ -172,7 +172,7 @@ class GrbmFrontEnd(MotionFrontEnd):
             # With prior_levels, the next pair is normally read from the previous motion on
             # the reduced pyramid: prepare that; a read without a prior (or a retry) cuts the
             # other levels when it needs them.
-            levels = self.flow.levels or self.config.prior_levels
+            levels = self.flow.levels or self.flow.finest + self.config.prior_levels
             prepare_first_frame(data, self._flow_config(levels, self.flow.finest),
                                 model=self.model)
 
@@ -230,8 +230,9 @@ class GrbmFrontEnd(MotionFrontEnd):
         # The previous frame's motion predicts this one to within a few pixels, which the
         # finest level reads. A camera that changes course, or blur the finest level cannot
         # read, fails the support test.
-        reading = self.read(prev, cur, prior, finest=self.flow.finest, fit=fit,
-                            levels=self.config.prior_levels, refine=True)
+        finest = self.flow.finest
+        reading = self.read(prev, cur, prior, finest=finest, fit=fit,
+                            levels=finest + self.config.prior_levels, refine=True)
         accepted = reading.motion.ok and reading.support >= self.config.retry_below
         self._retry.record(accepted)
         return reading if accepted else None

@@ -130,7 +130,8 @@ def _count_flops(timers: Timers, model) -> None:
 
 
 def _count_rereads(timers: Timers) -> None:
-    """Time the readouts after the first of each frame (coarser_if_blurred, retry)."""
+    """Time the readouts after the first of each frame (coarser re-reads; the full pyramid
+    after a refused reduced readout)."""
     from bgsub.engines.frontends import grbm
 
     read, measure = grbm.GrbmFrontEnd.read, grbm.GrbmFrontEnd.measure
@@ -243,7 +244,7 @@ def report(timers: Timers, *, n: int, wall: float, cpu: float, description: str,
         print(f"| {stage} | {ms[stage]:.2f} | {100 * ms[stage] / summed:.1f} % | "
               f"{second.get(stage, 0.0):.2f} |")
     print(f"| **sum of stages** | **{summed:.2f}** | | {sum(second.values()):.2f} |")
-    print(f"| of which readouts after the first (coarser re-reads, retry) | "
+    print(f"| of which readouts after the first (coarser re-reads, full after reduced) | "
           f"{1e3 * timers.reread_s / n:.2f} | {100e3 * timers.reread_s / n / summed:.1f} % |")
     print(f"\nwall {1e3 * wall / n:.2f} ms/frame ({n / wall:.1f} fps), CPU "
           f"{1e3 * cpu / n:.2f} ms/frame (process); sum of stages less wall "

@@ -172,7 +172,7 @@ class GrbmFrontEnd(MotionFrontEnd):
             # With prior_levels, the next pair is normally read from the previous motion on
             # the reduced pyramid: prepare that; a read without a prior (or a retry) cuts the
             # other levels when it needs them.
-            levels = self.flow.levels or self.flow.finest + self.config.prior_levels
+            levels = self.flow.levels or self._reduced_levels()
             prepare_first_frame(data, self._flow_config(levels, self.flow.finest),
                                 model=self.model)
 
@@ -224,18 +224,25 @@ class GrbmFrontEnd(MotionFrontEnd):
                  fit: CameraFit) -> Optional[Reading]:
         """The readout of the reduced pyramid (``prior_levels``, pre-warped by ``prior``) when
         it is due and well supported, else None: the frame is then read as without it."""
-        reduce = prior is not None and self.flow.levels == 0 and self.config.prior_levels > 0
-        if not (reduce and self._retry.due()):
+        levels = self._reduced_levels()
+        if prior is None or not levels or not self._retry.due():
             return None
         # The previous frame's motion predicts this one to within a few pixels, which the
         # finest level reads. A camera that changes course, or blur the finest level cannot
         # read, fails the support test.
-        finest = self.flow.finest
-        reading = self.read(prev, cur, prior, finest=finest, fit=fit,
-                            levels=finest + self.config.prior_levels, refine=True)
+        reading = self.read(prev, cur, prior, finest=self.flow.finest, fit=fit, levels=levels,
+                            refine=True)
         accepted = reading.motion.ok and reading.support >= self.config.retry_below
         self._retry.record(accepted)
         return reading if accepted else None
+
+    def _reduced_levels(self) -> int:
+        """The reduced pyramid's levels, counted from level 0 to its top (the final level and
+        ``prior_levels`` up from it); 0 when it is not read (``prior_levels=0``, or a fixed
+        ``levels``)."""
+        if self.flow.levels or not self.config.prior_levels:
+            return 0
+        return self.flow.finest + self.config.prior_levels
 
     def _refit(self, flow: FlowEstimate, prev: FramePyramid, cur: FramePyramid,
                fit: CameraFit) -> Optional[Reading]:

@@ -296,7 +296,9 @@ class SceneCut:
 class BlobPersistence:
     """A blob of the mask must overlap the previous frame's mask, moved by the camera and grown
     by ``radius`` px (:func:`~bgsub.background.fusion.persistent_blobs`; ``radius`` 0 = off).
-    The first mask after a (re)start has nothing to overlap and is kept whole."""
+    The first mask with foreground after a (re)start has nothing to overlap and is kept whole:
+    a young model often finds nothing in its first frames, and what it first finds is the
+    objects already in view."""
 
     def __init__(self, radius: int) -> None:
         self.radius = int(radius)
@@ -310,10 +312,13 @@ class BlobPersistence:
         (3, 3) is the camera motion from that frame."""
         if self.radius <= 0:
             return mask
-        # A copy: the engine may hand this very array to the caller, who may draw on it.
-        previous, self._previous = self._previous, mask.copy()
+        previous = self._previous
         if previous is None or previous.shape != mask.shape:
+            # Nothing found yet since the (re)start: the first mask with foreground is kept
+            # whole. (A copy: the engine may hand this very array to the caller.)
+            self._previous = mask.copy() if mask.any() else None
             return mask
+        self._previous = mask.copy()
         return persistent_blobs(mask, previous, matrix, radius=self.radius)
 
 

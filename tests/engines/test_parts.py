@@ -268,6 +268,15 @@ def test_blob_persistence_keeps_the_first_mask_and_what_stays():
     assert np.array_equal(part.filter(_square_at(40), np.eye(3)), _square_at(40))
 
 
+def test_blob_persistence_keeps_the_first_mask_with_foreground_after_empty_ones():
+    part = BlobPersistence(3)
+    empty = np.zeros((50, 60), np.uint8)
+    assert not part.filter(empty, np.eye(3)).any()  # a young model that found nothing yet
+    assert np.array_equal(part.filter(_square_at(40), np.eye(3)), _square_at(40))
+    assert not part.filter(empty, np.eye(3)).any()
+    assert not part.filter(_square_at(5), np.eye(3)).any()  # after a find, a new blob waits
+
+
 def test_blob_persistence_radius_0_changes_nothing():
     part = BlobPersistence(0)
     part.filter(_square_at(5), np.eye(3))

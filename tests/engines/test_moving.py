@@ -804,8 +804,8 @@ def _engine_with(name, **params):
 
 @pytest.mark.parametrize("name", ["grbm", "compensated"])
 def test_the_second_thread_changes_no_mask(name):
-    """overlap=1 (background update and next-frame preparation in a second thread) gives the vectors, masks and background of overlap=0,
-    frame for frame."""
+    """overlap=1 (background update and next-frame preparation in a second thread) gives
+    the vectors, masks and background of overlap=0, frame for frame."""
     frames = [f for f, _ in _frames(n=8)]
     one, two = _engine_with(name, overlap=0), _engine_with(name, overlap=1)
     for frame in frames:

@@ -370,6 +370,8 @@ def persistent_blobs(mask: np.ndarray, previous: np.ndarray, matrix: np.ndarray,
     n, labels = cv2.connectedComponents(mask, connectivity=8)
     kept = np.zeros(n, bool)
     kept[labels[(moved > 0) & (mask > 0)]] = True
+    if kept[1:].all():  # (the usual frame: skip a pass over the labels)
+        return mask
     kept[0] = False
     return np.where(kept[labels], mask, np.uint8(0))
 

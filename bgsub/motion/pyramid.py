@@ -20,6 +20,7 @@ import numpy as np
 
 from bgsub.model.tiling import to_gray
 from bgsub.motion.global_motion import is_affine
+from bgsub.motion.refine import as_uint8
 
 __all__ = ["FramePyramid", "MotionRangeWarning", "PyramidReach", "auto_levels", "model_range",
            "motion_reach", "pyramid_reach", "scale_homography", "warp_back"]
@@ -129,7 +130,12 @@ class FramePyramid:
     """
 
     def __init__(self, frame: np.ndarray) -> None:
+        frame = np.asarray(frame)
         self.images: List[np.ndarray] = [to_gray(frame)]
+        # A gray 8-bit frame is level 0 as the 8-bit trackers take it (not modified later:
+        # the pyramid is built once per frame).
+        is_gray8 = frame.dtype == np.uint8 and frame.ndim == 2
+        self._gray8: Optional[np.ndarray] = frame if is_gray8 else None
         self._caches: dict = {}
         self._lock = threading.Lock()  # levels() may be called from two threads at once
 
@@ -153,6 +159,13 @@ class FramePyramid:
             while len(self.images) < n and min(self.images[-1].shape) >= 2 * patch_size:
                 self.images.append(cv2.pyrDown(self.images[-1]))
             return self.images[:n]
+
+    def gray8(self) -> np.ndarray:
+        """Level 0 as ``(H, W) uint8`` (OpenCV's trackers take 8-bit images): the frame itself
+        when it came as 8-bit gray, else converted once (the frame serves two pairs)."""
+        if self._gray8 is None:
+            self._gray8 = as_uint8(self.images[0])
+        return self._gray8
 
     def cache(self, model: Any, settings: tuple, make: Any) -> Any:
         """The first-frame cache for one model and patch ``settings``, made by ``make()`` on

@@ -20,7 +20,7 @@ from bgsub.motion.config import FlowConfig
 from bgsub.motion.flowfield import (FlowEstimate, FramePyramid, dense_from_patches,
                                     estimate_flow, prepare_first_frame)
 from bgsub.motion.global_motion import GlobalMotion
-from bgsub.motion.refine import MIN_REFINE_WINDOW, as_uint8, refine_vectors
+from bgsub.motion.refine import MIN_REFINE_WINDOW, refine_vectors
 from bgsub.settings import check_settings, config_params, setting
 
 __all__ = ["GrbmConfig", "GrbmFrontEnd", "GRBM_TUNED", "FLOW_PARAMS", "Reading", "RetryWait"]
@@ -254,7 +254,7 @@ class GrbmFrontEnd(MotionFrontEnd):
         if self.config.refine_window == 0 or not usable.any():
             return None
         disp = flow.disp.copy()
-        disp[usable] = self._refine(prev.images[0], cur.images[0], flow.centres[usable],
+        disp[usable] = self._refine(prev.gray8(), cur.gray8(), flow.centres[usable],
                                     flow.disp[usable])
         reading = _fitted(flow, disp, fit, cur.images[0].shape)
         return reading if reading.motion.ok else None
@@ -296,7 +296,7 @@ class GrbmFrontEnd(MotionFrontEnd):
         In the calling thread: when the vectors are refined, the engine's second thread is
         still busy with the last frame's update and this frame's preparation, so work handed
         to it would wait for those (``docs/BENCHMARKS.md``)."""
-        return refine_vectors(as_uint8(prev), as_uint8(cur), points, disp,
+        return refine_vectors(prev, cur, points, disp,
                               window=self.config.refine_window,
                               within=self.config.refine_within)
 

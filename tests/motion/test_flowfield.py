@@ -9,6 +9,7 @@ import dataclasses
 import re
 import warnings
 
+import cv2
 import numpy as np
 import pytest
 
@@ -474,3 +475,15 @@ def test_a_model_name_is_loaded():
     base = random_texture(60, 80, seed=3)[:60, :80]
     flow = _flow(base, base, model="dots-translation", levels=1)
     assert flow.disp.shape[1] == 2
+
+
+def test_a_pyramids_8_bit_level_0_is_the_gray_frame_it_was_built_from():
+    from bgsub.motion.flowfield import FramePyramid
+
+    rng = np.random.default_rng(3)
+    gray = rng.integers(0, 256, (24, 32), dtype=np.uint8)
+    assert FramePyramid(gray).gray8() is gray  # nothing converted back from float
+    bgr = rng.integers(0, 256, (24, 32, 3), dtype=np.uint8)
+    from_bgr = FramePyramid(bgr).gray8()
+    assert from_bgr.dtype == np.uint8
+    assert np.array_equal(from_bgr, cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY))

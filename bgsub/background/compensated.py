@@ -28,7 +28,7 @@ import cv2
 import numpy as np
 
 from bgsub.errors import InputError, describe_shape
-from bgsub.motion.global_motion import is_affine, is_identity
+from bgsub.motion.global_motion import fast_median, is_affine, is_identity
 from bgsub.settings import check_settings, setting
 
 __all__ = ["BackgroundConfig", "CompensatedBackground", "warp_image"]
@@ -363,7 +363,7 @@ class CompensatedBackground:
         ok &= (m > 20) & (m < 235) & (f > 5) & (f < 250)
         if np.count_nonzero(ok) <= 100:
             return 1.0
-        return float(np.median(f[ok] / m[ok]))
+        return float(fast_median(f[ok] / m[ok]))
 
     def sensitive(self, *, within: float) -> np.ndarray:
         """``(H, W) bool``: pixels whose decision threshold (``k_sigma`` standard deviations, at

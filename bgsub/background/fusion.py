@@ -30,7 +30,7 @@ from bgsub.background.evidence import (cell_index, cells_to_pixels, frame_eviden
                                        residual_field)
 from bgsub.background.morphology import kernel
 from bgsub.errors import InputError
-from bgsub.motion.global_motion import apply_homography
+from bgsub.motion.global_motion import apply_homography, fast_median
 from bgsub.settings import check_settings, setting
 
 __all__ = ["FusionConfig", "Fusion", "flow_violation_map", "fuse_masks", "clean_mask",
@@ -275,7 +275,7 @@ def flow_violation_map(
     wt = np.asarray(weights, np.float64)
     ok = (wt > 0) & np.isfinite(err)
     if noise_scale > 0 and ok.any():
-        threshold = max(threshold, noise_scale * 1.4826 * float(np.median(err[ok])))
+        threshold = max(threshold, noise_scale * 1.4826 * float(fast_median(err[ok])))
     cells, (gh, gw) = cell_index((pts + d)[ok], (h, w), cell)
     # Soft step; the clip keeps exp() finite for wild vectors (err of thousands of px).
     viol = 1.0 / (1.0 + np.exp(-np.clip((err - threshold) / 0.25, -60.0, 60.0)))

@@ -29,7 +29,7 @@ from bgsub.background.sample import SampleBackground
 from bgsub.engines.frontend import NO_MOTION, MotionResult
 from bgsub.errors import InputError
 from bgsub.motion.global_motion import (GlobalMotion, apply_homography, corner_distances,
-                                        fit_global_motion)
+                                        fast_median, fit_global_motion)
 
 __all__ = ["SMALL_REGION", "spans_frame", "SmallRegionRule", "MotionHoldBack",
            "FrozenModelRegistration", "match_exposure", "EXPOSURE_TOLERANCE", "SATURATED",
@@ -343,8 +343,8 @@ def motion_snr(result: MotionResult, *, min_vectors: int = 8) -> float:
     pts = result.points[usable].astype(np.float64)
     predicted = apply_homography(result.motion.matrix, pts) - pts
     residual = np.linalg.norm(result.disp[usable] - predicted, axis=1)
-    scatter = 1.4826 * float(np.median(residual))
-    return float(np.median(np.linalg.norm(predicted, axis=1))) / max(scatter, 1e-3)
+    scatter = 1.4826 * float(fast_median(residual))
+    return float(fast_median(np.linalg.norm(predicted, axis=1))) / max(scatter, 1e-3)
 
 
 #: The fraction of the compared pixels the sample model may call foreground beyond
@@ -407,7 +407,7 @@ class StillCameraSwitch:
         frame, and its ``(h, w)`` score of it (None: no comparison with it)."""
         snr = motion_snr(result)
         snrs = [v[1] for v in self._votes] + [snr]
-        if np.median(snrs[-self.window:]) >= self.still_snr:
+        if fast_median(np.asarray(snrs[-self.window:], np.float64)) >= self.still_snr:
             # A rigid motion: the camera moves whatever the sample model says. Not scoring it
             # saves ~1 ms a frame; the frame counts as one the sample model does not explain.
             self._votes.append((1.0, snr, 1.0))

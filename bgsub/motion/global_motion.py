@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Optional
+from typing import Any, Optional
 
 import cv2
 import numpy as np
@@ -24,6 +24,7 @@ from bgsub.settings import check_settings, setting
 
 __all__ = [
     "CameraMotionConfig",
+    "fast_median",
     "GlobalMotion",
     "AUTO",
     "FIT_MODELS",
@@ -321,7 +322,7 @@ def simplest_model(src: np.ndarray, dst: np.ndarray, homography: np.ndarray,
     names = list(fits)
     errors = _squared_residuals(np.stack([fits[name] for name in names]), s, d)
     # Median of a 2D Gaussian residual's squared length: 2 ln 2 sigma^2.
-    typical = _column_median(errors[inl, :1])[0]
+    typical = fast_median(errors[inl, :1])[0]
     sigma2 = max(typical / (2.0 * math.log(2.0)), _FINEST_READING ** 2)
     penalty = math.log(4.0 * len(s))
     capped = np.minimum(errors, 4.0 * sigma2).sum(axis=0) / sigma2
@@ -352,7 +353,7 @@ def _least_squares_fits(s: np.ndarray, d: np.ndarray) -> dict:
         a, b = (xu + yv) / (xx + yy), (xv - yu) / (xx + yy)
         linear = np.array([[a, -b], [b, a]])
         fits["similarity"] = _matrix(linear, md - linear @ ms)
-    fits["translation"] = _matrix(np.eye(2), _column_median(d - s))
+    fits["translation"] = _matrix(np.eye(2), fast_median(d - s))
     return fits
 
 
@@ -427,7 +428,7 @@ def _fit_translation(s: np.ndarray, d: np.ndarray, threshold: float) -> tuple:
     near = _within(shifts[None, :, 0] - cand[:, None, 0], shifts[None, :, 1] - cand[:, None, 1],
                    threshold)
     mask = near[np.argmax(near.sum(axis=1))]
-    t = _column_median(shifts[mask])
+    t = fast_median(shifts[mask])
     mask = np.hypot(*(shifts - t).T) < threshold
     matrix = np.array([[1.0, 0.0, t[0]], [0.0, 1.0, t[1]], [0.0, 0.0, 1.0]])
     return matrix, mask.astype(np.uint8)
@@ -447,10 +448,12 @@ def _within(dx: np.ndarray, dy: np.ndarray, threshold: float) -> np.ndarray:
     return near
 
 
-def _column_median(a: np.ndarray) -> np.ndarray:
-    """``np.median(a, axis=0)`` of a finite ``(K, C) float64`` array (K >= 1), computed as numpy
-    computes it (the same partition, the mean of the middle one or two values) without its
-    per-call overhead, which on a few dozen shifts is most of a median's cost."""
+def fast_median(a: np.ndarray) -> Any:
+    """``np.median(a, axis=0)`` of a finite ``(K,)`` or ``(K, C)`` float array (K >= 1),
+    computed as numpy computes it (the same partition, the mean of the middle one or two values
+    in ``a``'s precision) without its per-call overhead, which on a frame's few hundred or few
+    thousand values is most of a median's cost: a scalar of ``a``'s dtype for ``(K,)``, a
+    ``(C,)`` array for ``(K, C)``."""
     k = len(a)
     half = k // 2
     kth = [half - 1, half, -1] if k % 2 == 0 else [(k - 1) // 2, -1]

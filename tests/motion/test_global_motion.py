@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from bgsub.motion.global_motion import (apply_homography, corner_error, fit_global_motion,
-                                        simplest_model)
+from bgsub.motion.global_motion import (apply_homography, corner_error, fast_median,
+                                        fit_global_motion, simplest_model)
 
 
 def _true_h():
@@ -174,3 +174,14 @@ def test_apply_homography_refuses_a_2x3_matrix_and_3d_points():
         apply_homography(np.eye(3), np.ones((2, 3)))
     # OpenCV's (N, 1, 2) still maps to (N, 2).
     np.testing.assert_allclose(apply_homography(np.eye(3), pts.reshape(-1, 1, 2)), pts)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("n", [1, 2, 7, 8, 1001, 1002])
+def test_fast_median_is_numpys_median_to_the_bit(dtype, n):
+    rng = np.random.default_rng(n)
+    values = (rng.normal(size=(n, 2)) * 50).astype(dtype)
+    values[: n // 3] = np.round(values[: n // 3])  # ties
+    column = fast_median(values[:, 0])
+    assert column == np.median(values[:, 0]) and column.dtype == dtype
+    assert np.array_equal(fast_median(values), np.median(values, axis=0))

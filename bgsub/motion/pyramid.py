@@ -130,12 +130,8 @@ class FramePyramid:
     """
 
     def __init__(self, frame: np.ndarray) -> None:
-        frame = np.asarray(frame)
         self.images: List[np.ndarray] = [to_gray(frame)]
-        # A gray 8-bit frame is level 0 as the 8-bit trackers take it (not modified later:
-        # the pyramid is built once per frame).
-        is_gray8 = frame.dtype == np.uint8 and frame.ndim == 2
-        self._gray8: Optional[np.ndarray] = frame if is_gray8 else None
+        self._gray8: Optional[np.ndarray] = None
         self._caches: dict = {}
         self._lock = threading.Lock()  # levels() may be called from two threads at once
 
@@ -161,8 +157,8 @@ class FramePyramid:
             return self.images[:n]
 
     def gray8(self) -> np.ndarray:
-        """Level 0 as ``(H, W) uint8`` (OpenCV's trackers take 8-bit images): the frame itself
-        when it came as 8-bit gray, else converted once (the frame serves two pairs)."""
+        """Level 0 as ``(H, W) uint8`` (OpenCV's trackers take 8-bit images), converted once: a
+        video's frame serves two pairs. An 8-bit frame's gray levels come back exactly."""
         if self._gray8 is None:
             self._gray8 = as_uint8(self.images[0])
         return self._gray8

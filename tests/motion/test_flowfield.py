@@ -482,7 +482,9 @@ def test_a_pyramids_8_bit_level_0_is_the_gray_frame_it_was_built_from():
 
     rng = np.random.default_rng(3)
     gray = rng.integers(0, 256, (24, 32), dtype=np.uint8)
-    assert FramePyramid(gray).gray8() is gray  # nothing converted back from float
+    pyramid = FramePyramid(gray)
+    assert np.array_equal(pyramid.gray8(), gray)
+    assert pyramid.gray8() is pyramid.gray8()  # converted once
     bgr = rng.integers(0, 256, (24, 32, 3), dtype=np.uint8)
     from_bgr = FramePyramid(bgr).gray8()
     assert from_bgr.dtype == np.uint8

@@ -28,6 +28,7 @@ import contextlib
 import threading
 from typing import Optional, Tuple
 
+import cv2
 import numpy as np
 
 from bgsub.errors import InputError
@@ -242,21 +243,23 @@ def _peaks(scores: np.ndarray, r: int, *, subpixel: bool = True) -> Tuple[np.nda
     disp = offsets[best]  # a copy (fancy indexing)
 
     if subpixel and r > 0:
-        # Neighbours (left, right, up, down) of each peak (see _peak_tables).
+        # Neighbours (left, right, up, down) of each peak (see _peak_tables); columns 0: dx
+        # (left/right), 1: dy (up/down).
         lrud = flat_scores[base[:, None] + nb[best]]
-        for axis in (0, 1):  # 0: dx (left/right), 1: dy (up/down)
-            lo, hi = lrud[:, 2 * axis], lrud[:, 2 * axis + 1]
-            curv = lo - 2.0 * peak + hi
-            ok = curv < 0
-            shift = np.zeros(n, np.float32)
-            shift[ok] = 0.5 * (lo[ok] - hi[ok]) / curv[ok]
-            disp[:, axis] += np.clip(shift, -0.5, 0.5)
+        lo, hi = lrud[:, 0::2], lrud[:, 1::2]
+        curv = lo - 2.0 * peak[:, None] + hi
+        ok = curv < 0
+        shift = np.zeros((n, 2), np.float32)
+        shift[ok] = 0.5 * (lo[ok] - hi[ok]) / curv[ok]
+        disp += np.clip(shift, -0.5, 0.5)
 
     # The strongest rival: the best score outside the 3x3 neighbourhood of the peak (or, when
-    # the window has nothing outside it, the second-best score).
-    masked = scores.copy()
-    masked.reshape(-1)[base[:, None] + block[best]] = -np.inf  # 9 writes per row, not 81
-    rival = masked.max(axis=1)
+    # the window has nothing outside it, the second-best score). Masked in a transposed copy:
+    # a maximum over its rows is a few whole-row passes, over the short rows of scores a slow
+    # reduction per row.
+    masked = cv2.transpose(scores)
+    masked.reshape(-1)[block[best] * n + np.arange(n)[:, None]] = -np.inf  # 9 writes per row
+    rival = masked.max(axis=0)
     lone = ~np.isfinite(rival)
     if n_d > 1 and lone.any():
         rival[lone] = np.partition(scores[lone], -2, axis=1)[:, -2]

@@ -3,14 +3,15 @@
 The engines decide foreground at a working size (320 px wide by default) from scores pooled
 over patches and cells and cleaned by morphology, so the fused mask's outline is blocky, and
 scaled up to a larger input it is pixels off the object's edge. :func:`guided_mask` places it on
-the frame's colour edges with the guided filter of He, Sun and Tang (2010), computed at the
-working size and applied at the input's (the "fast" guided filter of He and Sun, 2015): within
-each window of the working-size frame the mask is fitted as a linear function of the colour
-(``mask ~ a . colour + b``, least squares with ridge ``eps``), the coefficients are averaged over
-the windows that hold each pixel, scaled up to the input's size and applied to the input
-frame's own colours; foreground is where the result exceeds one half. Where a window holds an
-edge of the frame, the mask's edge moves onto it; where the frame is flat (colour variance well
-below ``eps``) the mask keeps its local mean.
+the frame's colour edges with the guided filter of He, Sun and Tang (2010), fitted at the
+working size shrunk by ``step`` and applied at the input's (the "fast" guided filter of He and
+Sun, 2015): within each window of the shrunk frame the mask is fitted as a linear function of
+the colour (``mask ~ a . colour + b``, least squares with ridge ``eps``), the coefficients are
+averaged over the windows that hold each pixel, scaled up to the input's size and applied to
+the input frame's own colours; foreground is where the result exceeds one half. Where a window
+holds an edge of the frame, the mask's edge moves onto it; where the frame is flat (colour
+variance well below ``eps``) the mask keeps its local mean. The coefficients vary smoothly
+(window averages), so a fit on the frame shrunk by 2 places the outline about as well.
 
 The filter is linear in the mask and local: pixels farther than ``2 radius`` from the mask's
 foreground come out 0, so only its bounding box, with a margin, is filtered.
@@ -27,7 +28,7 @@ __all__ = ["guided_mask"]
 
 
 def guided_mask(mask: np.ndarray, guide: np.ndarray, full_guide: np.ndarray, *,
-                radius: int, eps: float) -> np.ndarray:
+                radius: int, eps: float, step: int = 1) -> np.ndarray:
     """``mask`` placed on the frame's edges, at ``full_guide``'s size.
 
     Parameters
@@ -50,36 +51,59 @@ def guided_mask(mask: np.ndarray, guide: np.ndarray, full_guide: np.ndarray, *,
     (H, W) uint8
         0/255: foreground where the filtered mask exceeds one half.
     """
-    box = _box_of(mask, 3 * radius + 2)
+    box = _box_of(mask, 3 * radius + 2, step)
     if box is None:
         return np.zeros(full_guide.shape[:2], np.uint8)
     y0, y1, x0, x1 = box
-    colours = _channels(guide[y0:y1, x0:x1])
-    a, b = _coefficients(mask[y0:y1, x0:x1], colours, radius, np.float32(eps))
+    crop = guide[y0:y1, x0:x1]
+    fitted = _channels(_shrunk(crop, step))
+    a, b = _coefficients(_shrunk(mask[y0:y1, x0:x1], step), fitted,
+                         max(1, round(radius / step)), np.float32(eps))
     if full_guide.shape[:2] == mask.shape:
         out = np.zeros(mask.shape, np.uint8)
-        out[y0:y1, x0:x1] = _apply(a, b, colours)
+        colours = fitted if step == 1 else _channels(crop)
+        out[y0:y1, x0:x1] = _apply(*_grown(a, b, crop.shape[:2]), colours)
         return out
     # Scaled up whole: the coefficients are 0 outside the box.
-    h, w = mask.shape
+    h, w = -(-mask.shape[0] // step), -(-mask.shape[1] // step)
     planes = []
     for part in a + [b]:
         whole = np.zeros((h, w), np.float32)
-        whole[y0:y1, x0:x1] = part
+        whole[y0 // step:y0 // step + part.shape[0], x0 // step:x0 // step + part.shape[1]] = part
         planes.append(cv2.resize(whole, (full_guide.shape[1], full_guide.shape[0]),
                                  interpolation=cv2.INTER_LINEAR))
     return _apply(planes[:-1], planes[-1], _channels(full_guide))
 
 
-def _box_of(mask: np.ndarray, margin: int) -> Optional[Tuple[int, int, int, int]]:
-    """``(y0, y1, x0, x1)``: the bounding box of ``mask``'s foreground grown by ``margin`` and
-    clipped to the mask, or None for an empty mask."""
+def _shrunk(image: np.ndarray, step: int) -> np.ndarray:
+    """``image`` shrunk by ``step`` (area averages; a partial block at the end counts as a
+    block), or itself for 1."""
+    if step == 1:
+        return image
+    h, w = image.shape[:2]
+    return cv2.resize(image, (-(-w // step), -(-h // step)), interpolation=cv2.INTER_AREA)
+
+
+def _grown(a: List[np.ndarray], b: np.ndarray, shape: tuple) -> tuple:
+    """``(a, b)`` scaled up bilinearly to ``shape`` (h, w), as they are when of that shape."""
+    if b.shape == shape:
+        return a, b
+    size = (shape[1], shape[0])
+    return ([cv2.resize(x, size, interpolation=cv2.INTER_LINEAR) for x in a],
+            cv2.resize(b, size, interpolation=cv2.INTER_LINEAR))
+
+
+def _box_of(mask: np.ndarray, margin: int,
+            step: int = 1) -> Optional[Tuple[int, int, int, int]]:
+    """``(y0, y1, x0, x1)``: the bounding box of ``mask``'s foreground grown by ``margin``,
+    its start on a multiple of ``step`` and clipped to the mask, or None for an empty mask."""
     x, y, w, h = cv2.boundingRect(mask)
     if w == 0 or h == 0:
         return None
     rows, cols = mask.shape
-    return (max(0, y - margin), min(rows, y + h + margin),
-            max(0, x - margin), min(cols, x + w + margin))
+    y0, x0 = max(0, y - margin), max(0, x - margin)
+    return (y0 - y0 % step, min(rows, y + h + margin),
+            x0 - x0 % step, min(cols, x + w + margin))
 
 
 def _coefficients(mask: np.ndarray, colours: List[np.ndarray], radius: int,

@@ -68,6 +68,9 @@ class EngineConfig:
     edge_eps: float = setting(0.001, "... whose windows with a colour variance (values in "
                                      "[0, 1]) well below this keep the fused mask's mean "
                                      "rather than follow the frame's edges", above=0)
+    edge_step: int = setting(2, "... whose fit is made on the mask and frame shrunk by this "
+                                "factor and scaled back up (the fast guided filter: 2 fits "
+                                "a quarter of the pixels)", low=1, high=8)
     threads: int = setting(1, "BLAS and OpenCV worker threads while a frame is processed (0 = "
                               "as configured; more threads are slower for these small frames)",
                            low=0)

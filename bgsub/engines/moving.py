@@ -216,7 +216,8 @@ class MovingCameraEngine(Engine):
         if c.edge_radius == 0:
             return _to_input(mask, image.shape, binary=True)
         full = work if work.shape == image.shape else image
-        return guided_mask(mask, work, full, radius=c.edge_radius, eps=c.edge_eps)
+        return guided_mask(mask, work, full, radius=c.edge_radius, eps=c.edge_eps,
+                           step=c.edge_step)
 
     def close(self) -> None:
         """Stop the engine's second thread (``overlap=1``) now rather than when the engine is

@@ -68,3 +68,20 @@ def test_a_mask_over_a_flat_frame_keeps_its_place():
     assert abs(int(np.count_nonzero(out)) - int(np.count_nonzero(truth))) < 0.05 * np.count_nonzero(
         truth)
     assert _wrong_pixels(out, truth) < 0.1 * np.count_nonzero(truth)
+
+
+def test_a_fit_on_shrunk_images_follows_the_edges_too():
+    # The fast guided filter: coefficients fitted every 2nd or 4th working pixel and scaled
+    # back up still place the outline on the ellipse, at the input's size and at the working
+    # size (from an outline 3 px off).
+    frame, truth, small, small_mask = _scene()
+    bilinear = cv2.resize(small_mask, (640, 480), interpolation=cv2.INTER_LINEAR) > 127
+    small_truth = cv2.resize(truth, (160, 120), interpolation=cv2.INTER_AREA) > 127
+    offset = np.roll(small_mask, 3, axis=1)
+    for step in (2, 4):
+        fast = guided_mask(small_mask, small, frame, radius=4, eps=1e-3, step=step)
+        assert set(np.unique(fast)) <= {0, 255}
+        assert _wrong_pixels(fast, truth) < 0.1 * _wrong_pixels(bilinear, truth)
+        at_work = guided_mask(offset, small, small, radius=4, eps=1e-3, step=step)
+        assert at_work.shape == (120, 160)
+        assert _wrong_pixels(at_work, small_truth) < 0.5 * _wrong_pixels(offset, small_truth)

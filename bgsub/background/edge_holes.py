@@ -68,7 +68,8 @@ def _fill(mask: np.ndarray, gray: np.ndarray, share: float,
     """``(h, w) bool`` of the pixels to fill in the cropped ``mask`` ((h, w) bool), or None."""
     edges = cv2.dilate(cv2.Canny(gray, *_CANNY), kernel(cv2.MORPH_RECT, 3)) > 0
     free = ~mask & ~edges
-    n, labels, stats, _ = cv2.connectedComponentsWithStats(free.view(np.uint8), connectivity=4)
+    # (Areas by counting labels: connectedComponentsWithStats costs about twice as much.)
+    n, labels = cv2.connectedComponents(free.view(np.uint8), connectivity=4)
     if n <= 1:
         return None
     cross = kernel(cv2.MORPH_CROSS, 3)
@@ -76,15 +77,12 @@ def _fill(mask: np.ndarray, gray: np.ndarray, share: float,
     by_edge = free & (cv2.dilate(edges.view(np.uint8), cross) > 0)
     on_mask = np.bincount(labels[by_mask], minlength=n)
     on_either = np.bincount(labels[by_mask | by_edge], minlength=n)
-    ok = (stats[:, cv2.CC_STAT_AREA] <= max_area) & (on_mask > 0)
+    ok = (np.bincount(labels.ravel(), minlength=n) <= max_area) & (on_mask > 0)
     ok &= on_mask >= share * on_either
-    ok[_border_labels(labels)] = False  # open to the rest of the frame
+    for side in (labels[0], labels[-1], labels[:, 0], labels[:, -1]):
+        ok[side] = False  # open to the rest of the frame
     ok[0] = False
     if not ok.any():
         return None
     return ok[labels]
 
-
-def _border_labels(labels: np.ndarray) -> np.ndarray:
-    """The labels on the outermost rows and columns of ``labels``."""
-    return np.unique(np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]]))

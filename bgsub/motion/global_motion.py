@@ -115,9 +115,15 @@ def apply_homography(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
     pts = _points(points, "points", np.float64)
     h = _homography(matrix)
     xyw = pts @ h[:, :2].T + h[:, 2]
-    w = xyw[:, 2:3]
-    w = np.where(np.abs(w) < 1e-12, 1e-12, w)
-    return xyw[:, :2] / w
+    w = xyw[:, 2]
+    tiny = np.abs(w) < 1e-12
+    if tiny.any():
+        w = np.where(tiny, 1e-12, w)
+    # Column by column: numpy broadcasts (N, 2) / (N, 1) with an inner loop of 2 elements.
+    out = np.empty((len(xyw), 2))
+    np.divide(xyw[:, 0], w, out=out[:, 0])
+    np.divide(xyw[:, 1], w, out=out[:, 1])
+    return out
 
 
 _EYE = np.eye(3)

@@ -268,6 +268,16 @@ def test_clean_mask_does_not_fill_background_open_to_the_border():
     assert not out[20:40, 20:60].any() and not out[:10].any()
 
 
+def test_clean_mask_does_not_fill_a_notch_open_to_the_empty_frame_around_the_blob():
+    # The notch reaches the blob's own edge, not the frame's: open through the empty pixels.
+    m = np.zeros((60, 60), np.uint8)
+    m[10:50, 10:50] = 255
+    m[20:40, 30:50] = 0
+    m[0:3, 0:3] = 255  # a second blob, so the foreground's extent is not the first blob's alone
+    out = clean_mask(m, min_area=1, close=0, fill_holes=10_000)
+    assert not out[20:40, 30:50].any() and out[10:20, 10:50].all()
+
+
 def test_fusion_fills_the_inside_of_an_object_seen_only_at_its_outline():
     score = np.zeros((60, 60), np.float32)
     score[10:50, 10:50] = 2.0

@@ -346,7 +346,7 @@ class CompensatedBackground:
         inside = cv2.inRange(here, lo, hi) > 0  # every channel within its bounds
         return y0, x0, candidates[box] & inside
 
-    def exposure_gain(self, frame: np.ndarray, *, step: int = 4) -> float:
+    def exposure_gain(self, frame: np.ndarray, *, step: int = 8) -> float:
         """``frame``'s brightness relative to the model (warped to it): the median of ``frame /
         mean`` over every ``step``-th pixel and channel with a history (age 1 or more) where
         neither is near black or saturated (model 20-235, frame 5-250 gray levels). A median,

@@ -372,13 +372,18 @@ def persistent_blobs(mask: np.ndarray, previous: np.ndarray, matrix: np.ndarray,
                                 flags=cv2.INTER_NEAREST, borderValue=0)
     if radius > 0:
         moved = cv2.dilate(moved, kernel(cv2.MORPH_ELLIPSE, 2 * radius + 1))
-    n, labels = cv2.connectedComponents(mask, connectivity=8)
+    # Labelled within the mask's bounding box: its blobs are all there.
+    x, y, bw, bh = cv2.boundingRect(mask)
+    box = (slice(y, y + bh), slice(x, x + bw))
+    n, labels = cv2.connectedComponents(mask[box], connectivity=8)
     kept = np.zeros(n, bool)
-    kept[labels[(moved > 0) & (mask > 0)]] = True
+    kept[labels[(moved[box] > 0) & (mask[box] > 0)]] = True
     if kept[1:].all():  # (the usual frame: skip a pass over the labels)
         return mask
     kept[0] = False
-    return np.where(kept[labels], mask, np.uint8(0))
+    out = mask.copy()
+    out[box] = np.where(kept[labels], mask[box], np.uint8(0))
+    return out
 
 
 def _fill_holes(m: np.ndarray, max_area: int) -> None:

@@ -27,6 +27,7 @@ from typing import Callable, Optional
 import cv2
 import numpy as np
 
+from bgsub.background.clamp import at_least, at_most
 from bgsub.errors import InputError, describe_shape
 from bgsub.motion.global_motion import fast_median, is_affine, is_identity
 from bgsub.settings import check_settings, setting
@@ -152,7 +153,7 @@ class CompensatedBackground:
         if sharp:
             # Lanczos rings: keep the values in the range they can take.
             np.clip(self.mean, 0.0, 255.0, out=self.mean)
-            np.maximum(self.var, np.float32(self.config.min_std ** 2), out=self.var)
+            at_least(self.var, self.config.min_std ** 2)
         # Age with a zero border: uncovered pixels have no history. Linear interpolation lets
         # a pixel half-inside inherit a lower age, which is the cautious side.
         self.age = warp_image(self.age, matrix, (w, h), cv2.INTER_LINEAR, cv2.BORDER_CONSTANT)
@@ -198,7 +199,7 @@ class CompensatedBackground:
         # squares (no abs, no sqrt of the variance) and the root taken of the channel maximum.
         floor = max(p.min_diff, p.k_sigma * p.min_std)
         denom = self.var * np.float32(p.k_sigma * p.k_sigma)
-        np.maximum(denom, np.float32(floor * floor), out=denom)
+        at_least(denom, floor * floor)
         ratio = np.divide(sq, denom, out=denom)
         if ratio.shape[2] == 1:
             out = np.array(ratio[:, :, 0], dtype=np.float32)  # own contiguous copy
@@ -280,16 +281,16 @@ class CompensatedBackground:
             self.mean[take] = f[take]
         # Variance of background pixels only (with the clipped residual): a passing object must
         # not inflate the spread and blind the model.
-        np.minimum(d2, np.float32((4.0 * p.init_std) ** 2), out=d2)
+        at_most(d2, (4.0 * p.init_std) ** 2)
         d2 -= self.var
         d2 *= r
         self.var += d2
-        np.maximum(self.var, np.float32(p.min_std**2), out=self.var)
+        at_least(self.var, p.min_std**2)
         if learning_rate < 0.0 and fg is not None:
             # Only a mask's verdict counts: a frame learnt without one (the first) is unjudged.
             np.maximum(self.seen, np.float32(1.0), out=self.seen, where=~fg)
         self.age += np.float32(1.0)
-        np.minimum(self.age, np.float32(p.max_age), out=self.age)
+        at_most(self.age, p.max_age)
 
     def _difference(self, frame: np.ndarray) -> tuple:
         """``(f, d, sq)``: ``frame`` as (H, W, C) float32, ``d = f - mean`` and ``d * d``, as
@@ -310,7 +311,7 @@ class CompensatedBackground:
         if learning_rate >= 0.0:
             np.copyto(rate, np.float32(learning_rate), where=self.age >= 1.0)
             return rate
-        np.maximum(rate, np.float32(p.alpha), out=rate)
+        at_least(rate, p.alpha)
         if fg is not None:
             np.copyto(rate, np.float32(p.fg_alpha), where=fg & (self.age >= p.min_age))
         return rate

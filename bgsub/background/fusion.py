@@ -25,6 +25,7 @@ from typing import Optional
 import cv2
 import numpy as np
 
+from bgsub.background.clamp import at_least
 from bgsub.background.edge_holes import fill_edge_holes
 from bgsub.background.evidence import (cell_index, cells_to_pixels, frame_evidence,
                                        residual_field)
@@ -455,7 +456,7 @@ def fuse_masks(
         c -= np.float32(1.0)
         gain = c * np.where(c > 0, np.float32(flow_boost), np.float32(flow_damp))
         gain += np.float32(1.0)
-        np.maximum(gain, np.float32(0.0), out=gain)
+        at_least(gain, 0.0)
         gain *= bg_score
         score = gain
     return clean_mask(score > threshold, min_area=min_area, close=close, fill_holes=fill_holes)

@@ -8,6 +8,8 @@ arrays OpenCV cannot take in place (not C-contiguous, not float32).
 
 from __future__ import annotations
 
+from typing import Callable, Optional
+
 import cv2
 import numpy as np
 
@@ -16,23 +18,25 @@ __all__ = ["at_least", "at_most"]
 
 def at_least(a: np.ndarray, low: float) -> np.ndarray:
     """``a`` (float32, any shape) raised to at least ``low``, in place; returns ``a``."""
-    flat = _one_channel(a)
-    if flat is None:
-        return np.maximum(a, np.float32(low), out=a)
-    cv2.max(flat, float(low), dst=flat)
-    return a
+    return _bounded(a, low, cv2.max, np.maximum)
 
 
 def at_most(a: np.ndarray, high: float) -> np.ndarray:
     """``a`` (float32, any shape) lowered to at most ``high``, in place; returns ``a``."""
+    return _bounded(a, high, cv2.min, np.minimum)
+
+
+def _bounded(a: np.ndarray, bound: float, opencv: Callable, numpy: Callable) -> np.ndarray:
+    """``a`` bounded in place by OpenCV's ``opencv`` (max or min) against ``bound``, or by
+    numpy's same ``numpy`` where OpenCV cannot take ``a``."""
     flat = _one_channel(a)
     if flat is None:
-        return np.minimum(a, np.float32(high), out=a)
-    cv2.min(flat, float(high), dst=flat)
+        return numpy(a, np.float32(bound), out=a)
+    opencv(flat, float(bound), dst=flat)
     return a
 
 
-def _one_channel(a: np.ndarray):
+def _one_channel(a: np.ndarray) -> Optional[np.ndarray]:
     """A 2-D view of ``a`` that OpenCV sees as one channel (a scalar then bounds every value),
     or None when ``a`` is empty, not float32 or not C-contiguous."""
     if a.dtype != np.float32 or not a.flags.c_contiguous or a.size == 0:

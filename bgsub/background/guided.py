@@ -24,6 +24,8 @@ from typing import List, Optional, Tuple
 import cv2
 import numpy as np
 
+from bgsub.errors import InputError
+
 __all__ = ["guided_mask"]
 
 
@@ -45,12 +47,22 @@ def guided_mask(mask: np.ndarray, guide: np.ndarray, full_guide: np.ndarray, *,
     eps : float
         Ridge of the per-window fit, a variance of colour values in [0, 1]: windows whose
         colours vary much less than this keep the mask's mean instead of following the edges.
+    step : int
+        The fit is made on the mask and frame shrunk by this factor (area averages; the window
+        radius shrinks with them, to at least 1) and its coefficients scaled back up (>= 1).
 
     Returns
     -------
     (H, W) uint8
         0/255: foreground where the filtered mask exceeds one half.
+
+    Raises
+    ------
+    InputError
+        ``step`` below 1.
     """
+    if step < 1:
+        raise InputError(f"the edge filter's step must be 1 or more, not {step}")
     box = _box_of(mask, 3 * radius + 2, step)
     if box is None:
         return np.zeros(full_guide.shape[:2], np.uint8)

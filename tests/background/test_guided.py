@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
+import pytest
 
 from bgsub.background.guided import guided_mask
+from bgsub.errors import InputError
 
 
 def _scene(seed: int = 0, *, ground=70, inside=170) -> tuple:
@@ -85,3 +87,9 @@ def test_a_fit_on_shrunk_images_follows_the_edges_too():
         at_work = guided_mask(offset, small, small, radius=4, eps=1e-3, step=step)
         assert at_work.shape == (120, 160)
         assert _wrong_pixels(at_work, small_truth) < 0.5 * _wrong_pixels(offset, small_truth)
+
+
+def test_a_step_below_one_is_refused():
+    frame, _, small, small_mask = _scene()
+    with pytest.raises(InputError, match="step"):
+        guided_mask(small_mask, small, frame, radius=4, eps=1e-3, step=0)

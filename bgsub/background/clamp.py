@@ -26,12 +26,12 @@ def at_most(a: np.ndarray, high: float) -> np.ndarray:
     return _bounded(a, high, cv2.min, np.minimum)
 
 
-def _bounded(a: np.ndarray, bound: float, opencv: Callable, numpy: Callable) -> np.ndarray:
+def _bounded(a: np.ndarray, bound: float, opencv: Callable, fallback: Callable) -> np.ndarray:
     """``a`` bounded in place by OpenCV's ``opencv`` (max or min) against ``bound``, or by
-    numpy's same ``numpy`` where OpenCV cannot take ``a``."""
+    numpy's same operation ``fallback`` where OpenCV cannot take ``a``."""
     flat = _one_channel(a)
     if flat is None:
-        return numpy(a, np.float32(bound), out=a)
+        return fallback(a, np.float32(bound), out=a)
     opencv(flat, float(bound), dst=flat)
     return a
 

@@ -159,11 +159,13 @@ def _summary(stats: RunStats, method: str, outputs: List[str]) -> str:
 def _smooth_notice(stats: RunStats, method: str, params: dict) -> Optional[str]:
     """A hint when most frames were taken for scene cuts by an engine that can smooth but did
     not: grainy or heavily compressed footage makes most pixels differ from any model."""
-    from bgsub.engines.moving import SCENE_CUT
-
     spec = engines.get_engine_spec(method).params.get("smooth")
+    if spec is None or params.get("smooth", spec.default) > 0:
+        return None
+    from bgsub.engines.moving import SCENE_CUT  # (an engine that can smooth is one of these)
+
     cuts = stats.statuses.get(SCENE_CUT, 0) if stats.has_status else 0
-    if spec is None or params.get("smooth", spec.default) > 0 or 2 * cuts <= stats.frames:
+    if 2 * cuts <= stats.frames:
         return None
     return (f"{cuts} of {_plural(stats.frames, 'frame')} were taken for scene cuts (the model "
             "restarted, the mask empty); if the footage is grainy or heavily compressed, "

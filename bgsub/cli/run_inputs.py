@@ -73,7 +73,6 @@ def check_inputs(params: Dict[str, Any], *, width: int, height: int) -> Dict[str
     """``params`` with the region of interest and the known camera motion read now (the region
     also scaled to ``width`` x ``height`` frames), so a bad file stops the run before any frame
     is processed."""
-    from bgsub.engines.parts import KnownMotion
     from bgsub.engines.roi import RegionOfInterest
 
     params = dict(params)
@@ -82,6 +81,8 @@ def check_inputs(params: Dict[str, Any], *, width: int, height: int) -> Dict[str
         region.at((height, width))
         params["roi"] = region
     if params.get("known_motion"):
+        from bgsub.engines.parts import KnownMotion  # (a moving-camera engine's, imported)
+
         params["known_motion"] = KnownMotion.from_value(params["known_motion"])
     return params
 

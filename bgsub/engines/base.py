@@ -28,9 +28,12 @@ import numpy as np
 from bgsub.engines.roi import ROI_HELP, RegionOfInterest
 from bgsub.errors import InputError, describe_shape
 
-# Modules whose import registers the built-in engines (imported on first use of the registry,
-# so `import bgsub` stays light).
-_BUILTIN_MODULES = ("bgsub.engines.baselines", "bgsub.engines.moving")
+# The built-in engines, in the order they are listed, and the module whose import registers
+# each: a command imports only its engine's (the classical engines start without the
+# moving-camera stack), and `import bgsub` stays light.
+_BUILTIN_ENGINES = {"mog2": "bgsub.engines.baselines", "knn": "bgsub.engines.baselines",
+                    "framediff": "bgsub.engines.baselines", "grbm": "bgsub.engines.moving",
+                    "compensated": "bgsub.engines.moving"}
 
 #: The engine ``bgsub run`` (and :func:`create_engine`) uses when no method is named.
 DEFAULT_METHOD = "grbm"
@@ -393,7 +396,7 @@ def _load_builtins() -> None:
             return
         _loading = True
         try:
-            for module in _BUILTIN_MODULES:
+            for module in dict.fromkeys(_BUILTIN_ENGINES.values()):
                 importlib.import_module(module)
             _loaded = True
         finally:
@@ -401,9 +404,12 @@ def _load_builtins() -> None:
 
 
 def available_engines() -> List[EngineSpec]:
-    """All registered engines, in registration order."""
+    """All registered engines: the built-in ones in their order, then others in registration
+    order."""
     _load_builtins()
-    return list(_REGISTRY.values())
+    order = list(_BUILTIN_ENGINES)
+    return sorted(_REGISTRY.values(),
+                  key=lambda spec: order.index(spec.name) if spec.name in order else len(order))
 
 
 def default_method() -> str:
@@ -412,12 +418,16 @@ def default_method() -> str:
 
 
 def get_engine_spec(name: str) -> EngineSpec:
-    """The registered engine called ``name``; :class:`InputError` if there is none."""
-    _load_builtins()
+    """The registered engine called ``name``; :class:`InputError` if there is none. Of the
+    built-in engines only ``name``'s module is imported."""
+    if name not in _REGISTRY and name in _BUILTIN_ENGINES:
+        importlib.import_module(_BUILTIN_ENGINES[name])
+    if name not in _REGISTRY:
+        _load_builtins()
     try:
         return _REGISTRY[name]
     except KeyError:
-        known = ", ".join(_REGISTRY)
+        known = ", ".join(spec.name for spec in available_engines())
         raise InputError(f"unknown method {name!r} (available: {known})") from None
 
 

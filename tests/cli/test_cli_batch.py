@@ -104,9 +104,16 @@ def test_ctrl_c_stops_the_batch_and_a_rerun_finishes_it(tmp_path, clips, capsys)
                      "at=99", "--jobs", "1")
     assert code == 0, err
     assert all(len(_masks(out / f"{clip.stem}.mkv")) == N for clip in clips)
-    # Complete outputs made with other settings are not taken for this run's.
+    # Complete outputs made with other settings are not taken for this run's: kept, and each
+    # input reported as a skip that names the change.
+    before = [(out / f"{clip.stem}.mkv").read_bytes() for clip in clips]
     code, err = _run(capsys, *clips, "-o", out, "--method", "mog2", "--jobs", "1")
-    assert code == 1 and err.count("other settings") == 3
+    assert code == 0, err
+    assert err.splitlines()[:3] == [
+        f"bgsub: {clip.stem}: made with other settings (method _test_batch_ctrl_c -> mog2, at 99 "
+        "-> default): --overwrite redoes it" for clip in clips]
+    assert "3 skipped" in err.splitlines()[-1]
+    assert [(out / f"{clip.stem}.mkv").read_bytes() for clip in clips] == before
 
 
 def test_a_rerun_redoes_only_what_is_not_complete(tmp_path, clips, capsys):

@@ -93,6 +93,9 @@ def outcome_result(job: RunJob, outcome: Any) -> JobResult:
     result = JobResult(job.name, job.input, FAILED, outputs=dict(job.outputs))
     if isinstance(outcome, BaseException) and type(outcome).__name__ == "CancelledError":
         result.status = NOT_STARTED
+    elif type(outcome).__name__ == "BrokenProcessPool":  # (a worker's death breaks the pool)
+        result.message = ("its worker process ended abruptly (killed, or out of memory), and "
+                          "the batch's other workers with it; a rerun of the batch redoes it")
     else:
         result.message = f"the worker running it failed: {type(outcome).__name__}: {outcome}"
     return result

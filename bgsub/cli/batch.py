@@ -176,13 +176,17 @@ def _result_line(result: Any) -> Optional[str]:
     """The one line an input's result gets while the batch runs, or None (done, or skipped
     as complete)."""
     from bgsub.batch.job import FAILED, INTERRUPTED, NOT_STARTED, SKIPPED
+    from bgsub.io.outputs import frames_text
 
     if result.status == FAILED:
         return _failure_line(result)
     if result.status == SKIPPED and result.message:
         return f"{result.name}: {result.message}"
+    if result.status == INTERRUPTED and result.frames:
+        return (f"{result.name}: interrupted after {frames_text(result.frames)}, its outputs "
+                "partial but valid; a rerun of the batch redoes it")
     if result.status == INTERRUPTED:
-        return f"{result.name}: {result.message}; a rerun of the batch redoes it"
+        return f"{result.name}: interrupted before its first frame; a rerun of the batch does it"
     if result.status == NOT_STARTED:
         return f"{result.name}: not started (the batch was stopped); a rerun of the batch does it"
     return None
@@ -235,10 +239,10 @@ def run_batch(args: argparse.Namespace, *, method: str, params: dict, reads: lis
     settings = {"method": method, "params": params, "jobs": jobs, "threads_per_job": per_job,
                 "scheduler": args.scheduler}
     report = runner.BatchReport([results[item.name] for item in items], interrupted, settings)
-    if args.summary:
-        report.write_json(args.summary)
     common.note(_closing_line(report, time.perf_counter() - started, args.output),
                 quiet=args.quiet and report.ok)
+    if args.summary:  # (after the closing line: a full disk may refuse it)
+        report.write_json(args.summary)
     if interrupted:
         raise KeyboardInterrupt
     return 0 if report.ok else 1

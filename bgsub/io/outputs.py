@@ -228,6 +228,8 @@ def write_atomically(path: Path, data: bytes, *, what: str) -> None:
     except OSError as err:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
+        if err.errno in (errno.ENOSPC, getattr(errno, "EDQUOT", None)):
+            raise write_error(path, what, err) from None  # (a full disk: exit status 1)
         raise OutputError(f"cannot write {what} {path}: {err.strerror or err}") from None
 
 

@@ -62,6 +62,9 @@ def corpus(tmp_path_factory) -> Path:
     # A PNG whose compressed data is damaged: libpng prints "libpng error: ..." itself.
     (root / "corrupt.png").write_bytes(good_png[:60] + b"\0" * 50 + good_png[110:])
     (root / "truncated.png").write_bytes(good_png[: len(good_png) // 2])
+    # Cut in its last chunk ("libpng error: Read Error"), or in its header (OpenCV's log line).
+    (root / "truncated_end.png").write_bytes(good_png[:-20])
+    (root / "truncated_header.png").write_bytes(good_png[:16])
     (root / "empty.png").write_bytes(b"")
     (root / "text.png").write_text("not an image\n")
     ok, jpeg = cv2.imencode(".jpg", big)
@@ -122,6 +125,10 @@ CASES = [
     (["flow", "{c}/a.png", "{c}/no_images", "-o", "{t}/f.flo"], "folder"),
     (["analogy", "{c}/truncated.png", "{c}/a.png", "{c}/b.png", "-o", "{t}/an.png"],
      "truncated.png"),
+    (["analogy", "{c}/truncated_end.png", "{c}/a.png", "{c}/b.png", "-o", "{t}/an.png"],
+     "truncated_end.png"),
+    (["analogy", "{c}/a.png", "{c}/truncated_header.png", "{c}/b.png", "-o", "{t}/an.png"],
+     "truncated_header.png"),
     # ground truth
     (["eval", "{c}/preds", "{c}/gt_corrupt"], "gt000002.png"),
     (["eval", "{c}/preds", "{c}/roi_corrupt"], "ROI.bmp"),

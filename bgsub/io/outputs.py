@@ -228,8 +228,6 @@ def write_atomically(path: Path, data: bytes, *, what: str) -> None:
     except OSError as err:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
-        if err.errno in (errno.ENOSPC, getattr(errno, "EDQUOT", None)):
-            raise write_error(path, what, err) from None  # (a full disk: exit status 1)
         raise OutputError(f"cannot write {what} {path}: {err.strerror or err}") from None
 
 
@@ -298,7 +296,6 @@ def check_new_folder(folder: Path, output: Path) -> None:
     while not ancestor.exists() and ancestor != ancestor.parent:
         ancestor = ancestor.parent
     check_writable_folder(ancestor, output)
-
 
 
 def check_motion_output(path: PathLike, *, overwrite: bool = False) -> Path:

@@ -107,7 +107,7 @@ def _changes(old: Any, new: Any, prefix: str = "") -> List[str]:
         elif key in ("params", "source"):
             changes += _changes(old.get(key) or {}, new.get(key) or {})
         else:
-            changes += _changes(old.get(key), new.get(key), f"{prefix}{key}")
+            changes += _changes(old.get(key), new.get(key), f"{prefix}.{key}" if prefix else key)
     return changes
 
 

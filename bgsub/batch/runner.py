@@ -67,17 +67,19 @@ def _distinct_from_input(item: BatchInput, outputs: Mapping[str, str]) -> Option
 
 def plan(items: Iterable[BatchInput], layout: OutputLayout, *, method: str,
          params: Mapping[str, Any], run_params: Mapping[str, Any],
-         source: Mapping[str, Any], overwrite: bool, threads: int, progress: bool = False
-         ) -> Tuple[List[RunJob], List[JobResult]]:
+         source: Mapping[str, Any], overwrite: bool, threads: int, progress: bool = False,
+         writing: Optional[Mapping[str, Any]] = None) -> Tuple[List[RunJob], List[JobResult]]:
     """The jobs to run, and the results of the inputs that need none (complete outputs:
     ``skipped``; outputs that are not the batch's to replace: ``failed``, with the reason).
-    ``progress``: the jobs show a bar over their frames (when they run in this process)."""
+    ``progress``: the jobs show a bar over their frames (when they run in this process);
+    ``writing``: how the outputs are written (:attr:`RunJob.writing`)."""
     jobs: List[RunJob] = []
     settled: List[JobResult] = []
     for item in items:
         outputs = layout.outputs(item.name)
         job = RunJob(item.path, item.name, outputs, layout.record(item.name), method,
-                     dict(params), dict(run_params), dict(source), overwrite, threads, progress)
+                     dict(params), dict(run_params), dict(source), overwrite, threads, progress,
+                     dict(writing or {}))
         refused = _distinct_from_input(item, outputs)
         decision = record.RUN
         if refused is None:
@@ -152,7 +154,7 @@ def check_layout(layout: OutputLayout, items: List[BatchInput]) -> None:
         resolved = Path(folder).resolve()
         if resolved in inputs:
             raise OutputError(f"{folder}: {flag} is an input folder; give another folder")
-        extension = {"--motion": ".npy", "-o": f".{layout.mask_format}"}.get(flag, ".mp4")
+        extension = layout.extension(flag)
         if (resolved, extension) in seen:
             raise OutputError(f"{folder}: given to both {seen[resolved, extension]} and {flag}")
         seen[resolved, extension] = flag

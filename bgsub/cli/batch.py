@@ -8,6 +8,7 @@ failure, the closing summary line and the ``--summary`` JSON.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 import time
@@ -18,7 +19,8 @@ from bgsub.errors import InputError, OutputError
 _BATCH_HELP = """\
 several inputs (or a folder or glob of videos) make a batch: one output per input in the -o
 folder, named after the input (OUTDIR/v1.mkv for v1.mp4; --mask-format png: a folder
-OUTDIR/v1/ of binNNNNNN.png), and --vis, --flow-vis and --motion name folders too. An input
+OUTDIR/v1/ of binNNNNNN.png), and --vis, --flow-vis, --motion, --objects (NAME.jsonl) and
+--stats (NAME.csv) name folders too; --json prints the batch's summary. An input
 whose complete outputs exist is skipped (--overwrite redoes it); OUTDIR/.bgsub-batch/ records
 which are complete. A failing input does not stop the others; the exit status is 1 when any
 failed. Ctrl-C stops the batch: finished outputs stay, running ones are partial but valid and
@@ -83,18 +85,20 @@ def jobs_and_threads(args: argparse.Namespace) -> tuple:
 
 
 def _layout(args: argparse.Namespace) -> Any:
-    from bgsub.batch.plan import OutputLayout
+    from bgsub.batch.plan import SIDE_OUTPUTS, OutputLayout
     from bgsub.io.sinks import MASK_VIDEO_CODECS
 
     if args.output.lower().endswith(tuple(MASK_VIDEO_CODECS)):
         raise OutputError(f"{args.output}: -o of several inputs is a folder (each input's masks "
                           "go to OUTDIR/NAME.mkv; --mask-format chooses the type)")
-    for flag, path in (("--vis", args.vis), ("--flow-vis", args.flow_vis),
-                       ("--motion", args.motion)):
-        if path and path.lower().endswith((".mp4", ".avi", ".mkv", ".mov", ".npy")):
+    sides = {kind: getattr(args, kind, None) for kind, _, _ in SIDE_OUTPUTS}
+    for kind, flag, _ in SIDE_OUTPUTS:
+        path = sides[kind]
+        if path and path.lower().endswith((".mp4", ".avi", ".mkv", ".mov", ".npy", ".jsonl",
+                                           ".csv")):
             raise OutputError(f"{path}: {flag} of several inputs is a folder (one file per "
                               "input, named after it)")
-    return OutputLayout(args.output, args.mask_format, args.vis, args.flow_vis, args.motion)
+    return OutputLayout(args.output, args.mask_format, **sides)
 
 
 def _say(bar: Any, message: str) -> None:
@@ -141,7 +145,7 @@ def run_batch(args: argparse.Namespace, *, method: str, params: dict) -> int:
     from bgsub.batch.job import FAILED, INTERRUPTED, run_input
     from bgsub.cli import common
 
-    for_workers(args, "input", "output", "vis", "flow_vis", "motion")
+    for_workers(args, "input", "output", "vis", "flow_vis", "motion", "objects", "stats")
     items = inputs.expand(args.input)
     layout = _layout(args)
     jobs, per_job = jobs_and_threads(args)
@@ -153,7 +157,9 @@ def run_batch(args: argparse.Namespace, *, method: str, params: dict) -> int:
     todo, settled = runner.plan(items, layout, method=method, params=params,
                                 run_params=run_params, source=_source(args),
                                 overwrite=args.overwrite, threads=per_job,
-                                progress=jobs == 1 and not args.scheduler and not args.quiet)
+                                progress=jobs == 1 and not args.scheduler and not args.quiet,
+                                writing={"codec": args.codec,
+                                         "min_object_area": args.min_object_area})
     results = {result.name: result for result in settled}
     bar = tqdm(total=len(items), initial=len(settled), unit="input", desc=method,
                file=sys.stderr, disable=args.quiet or not sys.stderr.isatty(), leave=False)
@@ -180,6 +186,8 @@ def run_batch(args: argparse.Namespace, *, method: str, params: dict) -> int:
     report = runner.BatchReport([results[item.name] for item in items], interrupted, settings)
     if args.summary:
         report.write_json(args.summary)
+    if args.json:
+        print(json.dumps(report.to_dict(), default=str), flush=True)
     common.note(_closing_line(report, time.perf_counter() - started, args.output),
                 quiet=args.quiet and report.ok)
     if interrupted:
@@ -203,14 +211,6 @@ def dispatch(args: argparse.Namespace, *, method: str, params: dict) -> Optional
     if args.summary:
         check_file_output(args.summary, overwrite=True)
     if inputs.is_batch(args.input):
-        for flag, value in (("--objects", getattr(args, "objects", None)),
-                            ("--json", getattr(args, "json", False))):
-            if value:
-                raise InputError(f"{flag} is for a single input; a batch writes --summary "
-                                 "FILE.json")
-        if getattr(args, "codec", "auto") != "auto":
-            raise InputError("--codec is for a single input; a batch writes its .mp4 videos "
-                             "in H.264 when PyAV is installed, else in mp4v")
         return run_batch(args, method=method, params=params)
     for flag, value in (("--scheduler", args.scheduler), ("--summary", args.summary)):
         if value:

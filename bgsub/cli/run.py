@@ -15,20 +15,12 @@ from typing import Any, List, Optional
 from bgsub import engines
 from bgsub.cli import batch, common, run_extras, run_inputs
 from bgsub.errors import InputError
+from bgsub.io.frame_stats import COLUMNS as STATS_COLUMNS
 from bgsub.io.loop import FrameLoop, RunStats
-from bgsub.io.sinks import (
-    MotionSink,
-    VideoSink,
-    VisSink,
-    check_mask_output,
-    check_motion_output,
-    check_video_output,
-    is_video_path,
-    open_mask_sink,
-)
+from bgsub.io.pipeline import OutputRequest, open_outputs
+from bgsub.io.sinks import is_video_path
 from bgsub.io.sources import FrameSource, VideoInfo, open_source
-from bgsub.io.writers import DebugImageWriter, MaskWriter, MotionWriter, ProgressBar
-from bgsub.objects import ObjectWriter, check_objects_output
+from bgsub.io.writers import ProgressBar
 
 _DESCRIPTION = """\
 Find the moving objects in a video and write one foreground mask per frame (0 = background, 255
@@ -101,6 +93,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                              "k maps pixels of frame k-1 to frame k, as bgsub samples' "
                              "camera_motion.npy (identity first; NaN where none was measured; "
                              "moving-camera engines)")
+    parser.add_argument("--stats", metavar="FILE.csv", default=None,
+                        help="also write per-frame statistics for tuning, one row per frame: "
+                             + ", ".join(STATS_COLUMNS) + " (frame: the mask's number; dx, dy: "
+                             "the camera motion at the frame's centre, px; rotation in degrees; "
+                             "inliers of vectors: the camera fit's support; foreground: the "
+                             "mask's share; gain: the exposure match; model: still or "
+                             "compensated; ms: the engine's time). A cell is empty where the "
+                             "engine has no such quantity")
     run_extras.add_options(parser)
     common.add_source_options(parser)
     run_inputs.add_options(parser)
@@ -122,21 +122,25 @@ def _method(name: Optional[str]) -> str:
     return name
 
 
+_FLAGS = {"masks": "-o", "vis": "--vis", "flow_vis": "--flow-vis", "motion": "--motion",
+          "objects": "--objects", "stats": "--stats"}
+
+
+def _request(args: argparse.Namespace) -> OutputRequest:
+    """The outputs asked for, as the output pipeline takes them."""
+    return OutputRequest(masks=args.output, vis=args.vis, flow_vis=args.flow_vis,
+                         motion=args.motion, objects=args.objects, stats=args.stats,
+                         codec=args.codec, min_object_area=args.min_object_area,
+                         overwrite=args.overwrite)
+
+
 def _check_outputs(args: argparse.Namespace, source: FrameSource) -> None:
     """Refuse bad outputs before any frame is processed."""
-    outputs = [("-o", args.output), ("--vis", args.vis), ("--flow-vis", args.flow_vis),
-               ("--motion", args.motion), ("--objects", args.objects)]
-    outputs = [(flag, path) for flag, path in outputs if path]
+    request = _request(args)
+    outputs = [(_FLAGS[kind], path) for kind, path in request.paths().items()]
     # First: "-" and the input's own folder are refused whether or not they look writable.
     common.check_distinct([args.input], outputs, input_folders=source.folders)
-    check_mask_output(args.output, overwrite=args.overwrite)
-    for flag, path in outputs[1:]:
-        if flag == "--motion":
-            check_motion_output(path, overwrite=args.overwrite)
-        elif flag == "--objects":
-            check_objects_output(path, overwrite=args.overwrite)
-        else:
-            check_video_output(path, overwrite=args.overwrite)
+    request.check()
 
 
 def _plural(count: int, noun: str) -> str:
@@ -209,36 +213,9 @@ def _eval_notice(args: argparse.Namespace, renumbered: bool) -> Optional[str]:
             f"{shlex.quote(str(args.output))} GROUNDTRUTH {flags}`")
 
 
-def _open_writers(stack: contextlib.ExitStack, args: argparse.Namespace,
-                  info: VideoInfo, objects: Optional[ObjectWriter], codecs: dict) -> list:
-    """Open the outputs asked for (in ``stack``, so a failure to open one closes the others)
-    and return their writers for the frame loop; the codec of each picture video goes to
-    ``codecs`` (``{"vis": "h264"}``)."""
-    size = dict(width=info.width, height=info.height)
-    masks = stack.enter_context(open_mask_sink(args.output, **size, fps=info.fps,
-                                               overwrite=args.overwrite))
-    writers: list = [MaskWriter(masks)] + ([objects] if objects else [])  # (tracks before --vis)
-    if args.vis:
-        vis = stack.enter_context(VisSink(args.vis, **size, fps=info.fps,
-                                          overwrite=args.overwrite, codec=args.codec))
-        codecs["vis"] = vis.codec
-        writers.append(run_extras.vis_writer(vis, objects))
-    if args.flow_vis:
-        flow_vis = stack.enter_context(VideoSink(args.flow_vis, fps=info.fps,
-                                                 overwrite=args.overwrite, codec=args.codec))
-        codecs["flow_vis"] = flow_vis.codec
-        writers.append(DebugImageWriter(flow_vis))
-    if args.motion:
-        writers.append(MotionWriter(stack.enter_context(
-            MotionSink(args.motion, overwrite=args.overwrite))))
-    return writers
-
-
 def _outputs(args: argparse.Namespace) -> dict:
     """The outputs asked for, by kind."""
-    given = {"masks": args.output, "vis": args.vis, "flow_vis": args.flow_vis,
-             "motion": args.motion, "objects": args.objects}
-    return {kind: str(path) for kind, path in given.items() if path}
+    return _request(args).paths()
 
 
 def _open_input(args: argparse.Namespace, params: dict) -> tuple:
@@ -277,7 +254,7 @@ def run(args: argparse.Namespace) -> int:
     status = batch.dispatch(args, method=method, params=params)  # several inputs
     if status is not None:
         return status
-    tracking = run_extras.tracker_config(args)
+    run_extras.tracker_config(args)  # (refused before the input is opened)
     source, params = _open_input(args, params)
     info = source.info
     engine = engines.create_engine(method, **params)
@@ -299,9 +276,8 @@ def run(args: argparse.Namespace) -> int:
         stack.enter_context(source)
         if callable(getattr(engine, "close", None)):  # (a plugin may not subclass Engine)
             stack.callback(engine.close)  # its worker thread ends with the command, not after
-        codecs: dict = {}
-        consumers = _open_writers(stack, args, info,
-                                  run_extras.open_objects(stack, args, tracking), codecs)
+        consumers, codecs = open_outputs(stack, _request(args), width=info.width,
+                                         height=info.height, fps=info.fps)
         consumers.append(ProgressBar(total=info.frame_count, desc=method,
                                      enabled=not args.quiet))
         loop = FrameLoop({method: engine}, consumers)

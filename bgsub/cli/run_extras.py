@@ -4,7 +4,6 @@ TOML file), ``--json`` (the run's summary for scripts) and ``--objects`` (tracke
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import math
 from typing import Any, Dict, Optional
@@ -13,8 +12,7 @@ from bgsub import engines
 from bgsub.cli.param_file import read_params
 from bgsub.errors import InputError
 from bgsub.io.loop import RunStats
-from bgsub.io.writers import VisWriter
-from bgsub.objects import ObjectSink, ObjectVisWriter, ObjectWriter, TrackerConfig
+from bgsub.objects import TrackerConfig
 
 
 def add_options(parser: argparse.ArgumentParser) -> None:
@@ -49,20 +47,6 @@ def tracker_config(args: argparse.Namespace) -> TrackerConfig:
         return TrackerConfig(min_area=args.min_object_area)
     except ValueError as err:
         raise InputError(f"--min-object-area: {err}") from None
-
-
-def open_objects(stack: contextlib.ExitStack, args: argparse.Namespace,
-                 config: TrackerConfig) -> Optional[ObjectWriter]:
-    """The objects' writer (its file opened in ``stack``), or None without --objects."""
-    if not args.objects:
-        return None
-    sink = stack.enter_context(ObjectSink(args.objects, overwrite=args.overwrite))
-    return ObjectWriter(sink, config=config)
-
-
-def vis_writer(sink: Any, objects: Optional[ObjectWriter]) -> VisWriter:
-    """The --vis writer: with boxes and ids when objects are tracked."""
-    return VisWriter(sink) if objects is None else ObjectVisWriter(sink, objects=objects)
 
 
 def print_summary(stats: RunStats, *, method: str, outputs: Dict[str, str],

@@ -145,7 +145,7 @@ def test_a_folder_of_videos_is_a_batch_with_side_outputs_in_folders(tmp_path, cl
     (["-o", "OUT/masks.mkv"], "is a folder"),
     (["-o", "OUT", "--vis", "OUT/v.mp4"], "--vis of several inputs is a folder"),
     (["-o", "OUT", "--jobs", "0"], "--jobs must be at least 1"),
-    (["-o", "OUT", "--objects", "objects.jsonl"], "--objects is for a single input"),
+    (["-o", "OUT", "--objects", "objects.jsonl"], "--objects of several inputs is a folder"),
 ])
 def test_batch_options_are_checked_first(tmp_path, clips, bgsub_error, argv, message):
     argv = [str(a).replace("OUT", str(tmp_path / "out")) for a in argv]

@@ -27,19 +27,16 @@ failed. Ctrl-C stops the batch: finished outputs stay, running ones are partial 
 are redone by the next run."""
 
 
-def add_parallel_options(parser: argparse.ArgumentParser, *,
-                         one_by_default: bool = False) -> None:
-    """``--jobs`` and ``--scheduler``: how many inputs at once, and where. ``one_by_default``:
-    ``--jobs`` defaults to 1 (``compare`` and ``eval``: their timings are not shared cores', and
-    Ctrl-C reports the frames processed), else to the usable cores."""
+def add_parallel_options(parser: argparse.ArgumentParser) -> None:
+    """``--jobs`` and ``--scheduler``: how many inputs at once, and where. ``--jobs`` defaults
+    to 1 in every command (an interrupted run reports what it processed, and timings are not
+    shared cores'); 0 takes the usable cores."""
     from bgsub.batch.threads import usable_cores
 
     group = parser.add_argument_group("many inputs")
-    default = ("1: one sequence after another, so an interrupted run still reports what it "
-               "processed" if one_by_default else f"the usable cores, {usable_cores()} here")
-    group.add_argument("-j", "--jobs", type=int, default=1 if one_by_default else None,
-                       metavar="N", help="inputs processed at once in local processes, each "
-                                         f"engine on one core (default: {default})")
+    group.add_argument("-j", "--jobs", type=int, default=1, metavar="N",
+                       help="inputs processed at once in local processes, each engine on one "
+                            f"core (default: 1; 0: the usable cores, {usable_cores()} here)")
     group.add_argument("--scheduler", default=None, metavar="ADDRESS",
                        help="run on the Dask cluster whose scheduler is at ADDRESS "
                             "(tcp://host:8786; needs pip install 'bgsub[dask]'); inputs and "
@@ -78,9 +75,10 @@ def jobs_and_threads(args: argparse.Namespace) -> tuple:
     """``(jobs, threads per job)`` of ``--jobs`` (a Dask task gets one thread)."""
     from bgsub.batch.threads import threads_per_job, usable_cores
 
-    jobs = usable_cores() if args.jobs is None else args.jobs
-    if jobs < 1:
-        raise InputError(f"--jobs must be at least 1, not {jobs}")
+    if args.jobs < 0:
+        raise InputError(f"--jobs takes a number of inputs at once, or 0 for the usable cores; "
+                         f"not {args.jobs}")
+    jobs = args.jobs or usable_cores()
     return jobs, (1 if args.scheduler else threads_per_job(jobs))
 
 

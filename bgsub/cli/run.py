@@ -80,7 +80,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         metavar="NAME", help=f"engine to use (default: "
                                              f"{engines.DEFAULT_METHOD}; see `bgsub methods`)")
     parser.add_argument("-p", "--param", action="append", default=[], metavar="KEY=VALUE",
-                        help="set an engine parameter, e.g. --param history=200 (repeatable)")
+                        help="set an engine parameter, e.g. --param history=200 (repeatable; "
+                             "METHOD.KEY=VALUE, as compare and bench take it, works too)")
     parser.add_argument("--vis", metavar="VIDEO", default=None,
                         help="also write the input with its mask overlaid, beside the mask "
                              "(.mp4, .avi or .mkv)")

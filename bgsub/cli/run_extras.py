@@ -8,7 +8,6 @@ import json
 import math
 from typing import Any, Dict, Optional
 
-from bgsub import engines
 from bgsub.cli.param_file import read_params
 from bgsub.errors import InputError
 from bgsub.io.loop import RunStats
@@ -33,7 +32,9 @@ def add_options(parser: argparse.ArgumentParser) -> None:
 
 def engine_params(args: argparse.Namespace, method: str) -> Dict[str, Any]:
     """The engine's parameters: the --config file's, then --param's over them."""
-    given = engines.parse_params(method, args.param)
+    from bgsub.cli.compare import parse_method_params  # (METHOD.KEY=VALUE too, as compare)
+
+    given = parse_method_params(args.param, [method]).get(method, {})
     return {**read_params(args.config, method), **given} if args.config else given
 
 

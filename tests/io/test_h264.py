@@ -144,7 +144,7 @@ def test_compare_side_by_side_codec_is_in_the_report(tmp_path: Path) -> None:
     clip = write_box_clip(tmp_path / "clip.mkv")
     out = tmp_path / "out"
     assert main(["compare", str(clip), "-m", "framediff", "-o", str(out), "-q",
-                 "--masks", "none", "--codec", "mp4v"]) == 0
+                 "--mask-format", "none", "--codec", "mp4v"]) == 0
     assert json.loads((out / "report.json").read_text())["settings"]["video_codec"] == "mp4v"
     assert is_mp4v(out / "side_by_side.mp4")
 
@@ -154,7 +154,7 @@ def test_compare_side_by_side_is_h264_with_pyav(tmp_path: Path) -> None:
     clip = write_box_clip(tmp_path / "clip.mkv")
     out = tmp_path / "out"
     assert main(["compare", str(clip), "-m", "framediff", "-o", str(out), "-q",
-                 "--masks", "none", "--no-report"]) == 0
+                 "--mask-format", "none", "--no-report"]) == 0
     assert is_h264(out / "side_by_side.mp4")
 
 

@@ -158,13 +158,6 @@ def test_compare_side_by_side_is_h264_with_pyav(tmp_path: Path) -> None:
     assert is_h264(out / "side_by_side.mp4")
 
 
-def test_batch_refuses_a_codec_choice(tmp_path: Path, bgsub_error) -> None:
-    clips = [write_box_clip(tmp_path / f"c{k}.mkv", seed=k) for k in range(2)]
-    err = bgsub_error(["run", *clips, "-m", "framediff", "-o", tmp_path / "out",
-                       "--codec", "mp4v"])
-    assert "--codec is for a single input" in err
-
-
 def test_flow_pair_refuses_a_codec_choice(tmp_path: Path, bgsub_error) -> None:
     for name in ("a.png", "b.png"):
         cv2.imwrite(str(tmp_path / name), np.zeros((48, 64), np.uint8))

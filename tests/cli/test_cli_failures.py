@@ -6,14 +6,13 @@ from __future__ import annotations
 import contextlib
 import functools
 import http.server
-import threading
 
 import cv2
 import numpy as np
 import pytest
 
 from bgsub.cli import main
-from conftest import serve_folder, write_gt_sequence
+from conftest import http_server, serve_folder, write_gt_sequence
 
 
 def _index_at_end_mp4(path):
@@ -36,16 +35,8 @@ def _plain_http_server(folder):
         def log_message(self, *args):
             pass
 
-    handler = functools.partial(Quiet, directory=str(folder))
-    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
-    server.daemon_threads = True
-    thread = threading.Thread(target=server.serve_forever, daemon=True)
-    thread.start()
-    try:
-        yield f"http://127.0.0.1:{server.server_address[1]}/"
-    finally:
-        server.shutdown()
-        server.server_close()
+    with http_server(functools.partial(Quiet, directory=str(folder))) as url:
+        yield url
 
 
 def test_an_mp4_over_http_without_byte_ranges_names_cause_and_fix(tmp_path, bgsub_error):

@@ -69,9 +69,13 @@ class RunJob:
     writing: Dict[str, Any] = field(default_factory=dict)
 
     def settings(self) -> Dict[str, Any]:
-        """The settings its completion record holds (see :func:`record.settings`)."""
-        return record.settings(input_path=self.input, method=self.method, params=self.params,
+        """The settings its completion record holds (see :func:`record.settings`), with the
+        ways of writing not left at their defaults (so records of batches run without them
+        stay as they were)."""
+        held = record.settings(input_path=self.input, method=self.method, params=self.params,
                                source=self.source)
+        writing = {k: v for k, v in self.writing.items() if v not in (None, "auto")}
+        return {**held, "writing": writing} if writing else held
 
 
 @dataclass

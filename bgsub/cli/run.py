@@ -52,6 +52,7 @@ examples:
   bgsub run clip.mp4 -o masks.mkv --flow-vis flow.mp4  the engine's motion field and camera fit
   bgsub run clip.mp4 -o masks.mkv --motion cam.npy     the estimated camera motion of every frame
   bgsub run clip.mp4 -o masks.mkv --objects objects.jsonl --vis overlay.mp4
+  bgsub run clip.mp4 -o masks.mkv --stats stats.csv   per-frame camera motion, inliers, time
   bgsub run clip.mp4 -o masks.mkv --config grbm.toml --json
   bgsub run 0 -o camera.mkv --max-frames 500           a camera, 500 frames (or until Ctrl-C)
   bgsub run rtsp://cam.local/live -o live.mkv --stall-timeout 5

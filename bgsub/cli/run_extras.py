@@ -20,7 +20,8 @@ def add_options(parser: argparse.ArgumentParser) -> None:
                              "--param takes); --param overrides it")
     parser.add_argument("--json", action="store_true",
                         help="print the run's summary as one JSON object on stdout: frames, "
-                             "seconds, fps, complete, statuses, outputs")
+                             "seconds, fps, complete, statuses, outputs (a batch: its summary, "
+                             "as --summary writes it)")
     parser.add_argument("--objects", metavar="FILE", default=None,
                         help="also write the objects of every frame, tracked across frames: "
                              ".jsonl (one JSON line per frame) or .csv (MOTChallenge); "

@@ -411,8 +411,8 @@ class MovingCameraEngine(Engine):
         """What the engine saw of the last frame, for per-frame statistics (None where it has no
         such quantity on that frame: the first, a blank frame, a scene cut).
 
-        ``status``: :attr:`last_status`; ``dx``, ``dy``: where :attr:`last_motion` moved the
-        frame's centre (input pixels); ``rotation`` (degrees) and ``scale`` of that motion's
+        ``status``: :attr:`last_status`; ``dx``, ``dy``: where :attr:`last_motion` (the motion
+        as applied, as ``--motion`` writes it) moved the frame's centre (input pixels); ``rotation`` (degrees) and ``scale`` of that motion's
         linear part; ``inliers`` and ``vectors``: the motion vectors that agree with the fit,
         and all the front end measured; ``gain``: what the frame was divided by to match the
         model's exposure (1.0 without ``match_exposure``); ``model``: ``"still"`` or
@@ -422,7 +422,7 @@ class MovingCameraEngine(Engine):
             ("dx", "dy", "rotation", "scale", "inliers", "vectors", "gain", "model"))
         stats["status"] = self.last_status
         matrix = self.last_motion
-        if matrix is not None:
+        if matrix is not None and self._last is not None:  # (the first frame measured none)
             h, w = self._in_shape[:2]
             centre = np.array([(w - 1) / 2.0, (h - 1) / 2.0, 1.0])
             moved = matrix @ centre

@@ -113,7 +113,7 @@ def test_run_stats_gives_a_row_per_mask_with_the_cameras_motion(tmp_path, capsys
     assert code == 0, capsys.readouterr().err
     rows = _rows(tmp_path / "s.csv")
     assert [row["frame"] for row in rows] == ["3", "4", "5", "6", "7", "8"]  # bin000003.png...
-    assert rows[0]["model"] == ""  # the first frame: nothing to compare with
+    assert rows[0]["model"] == rows[0]["dx"] == ""  # the first frame: nothing to compare with
     assert all(row["status"] == "ok" and row["model"] == "compensated" for row in rows[1:])
     assert all(1.5 < float(row["dx"]) < 6 for row in rows[1:])  # 2-5 px a frame, rightwards
     assert all(0 < float(row["inlier_share"]) <= 1 for row in rows[1:])
@@ -126,3 +126,19 @@ def test_a_stats_file_that_exists_is_refused_before_any_frame(tmp_path, bgsub_er
                        str(tmp_path / "s.csv")])
     assert "s.csv: already exists" in err
     assert not (tmp_path / "m").exists() and (tmp_path / "s.csv").read_text() == "mine\n"
+
+
+def test_a_batch_rerun_with_another_object_size_is_not_skipped(tmp_path, capsys):
+    clips = tmp_path / "clips"
+    clips.mkdir()
+    for k in range(2):
+        write_box_clip(clips / f"v{k}.mkv", seed=k, n=3, width=W, height=H)
+    argv = ["run", str(clips), "-o", str(tmp_path / "out"), "--method", "mog2", "--jobs", "1",
+            "--objects", str(tmp_path / "objects"), "--summary", str(tmp_path / "s.json")]
+    assert main(argv + ["--min-object-area", "5"]) == 0
+    assert main(argv + ["--min-object-area", "5"]) == 0
+    statuses = [r["status"] for r in json.loads((tmp_path / "s.json").read_text())["results"]]
+    assert statuses == ["skipped", "skipped"]
+    main(argv + ["--min-object-area", "9"])
+    assert "made with other settings" in capsys.readouterr().err
+    assert main(argv + ["--min-object-area", "9", "--overwrite"]) == 0

@@ -251,12 +251,12 @@ def run(args: argparse.Namespace) -> int:
     method = _method(args.method)
     params = run_inputs.engine_params(args, method, run_extras.engine_params(args, method))
     run_inputs.apply_max_frames(args)
+    run_extras.tracker_config(args)  # (refused before any input is opened)
     if args.motion_in and batch.is_batch(args):
         raise InputError("--motion-in is for a single input (a camera motion is one video's)")
     status = batch.dispatch(args, method=method, params=params)  # several inputs
     if status is not None:
         return status
-    run_extras.tracker_config(args)  # (refused before the input is opened)
     source, params = _open_input(args, params)
     info = source.info
     engine = engines.create_engine(method, **params)

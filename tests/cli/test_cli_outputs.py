@@ -8,6 +8,7 @@ import json
 
 import cv2
 import numpy as np
+import pytest
 
 from bgsub import create_engine
 from bgsub.cli import main
@@ -142,3 +143,22 @@ def test_a_batch_rerun_with_another_object_size_is_not_skipped(tmp_path, capsys)
     main(argv + ["--min-object-area", "9"])
     assert "made with other settings" in capsys.readouterr().err
     assert main(argv + ["--min-object-area", "9", "--overwrite"]) == 0
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--min-object-area", "0"], "--min-object-area"),
+    (["--min-object-area", "5"], "--min-object-area needs --objects"),
+    (["--stats", "STATS/s.csv"], "--stats of several inputs is a folder"),
+])
+def test_batch_output_options_are_checked_before_any_input(tmp_path, bgsub_error, extra,
+                                                           message):
+    clips = tmp_path / "clips"
+    clips.mkdir()
+    for k in range(2):
+        write_box_clip(clips / f"v{k}.mkv", seed=k, n=3, width=W, height=H)
+    objects = [] if "needs" in message else ["--objects", str(tmp_path / "objects")]
+    extra = [a.replace("STATS", str(tmp_path / "stats")) for a in extra]
+    err = bgsub_error(["run", str(clips), "-o", str(tmp_path / "out"), "-m", "mog2", *objects,
+                       *extra])
+    assert message in err
+    assert not (tmp_path / "out").exists()

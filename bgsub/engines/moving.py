@@ -36,7 +36,7 @@ return an empty mask (or, for a scene cut, restart the model) and say why in ``l
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple, Optional, Type
+from typing import Any, Dict, NamedTuple, Optional, Type
 
 import cv2
 import numpy as np
@@ -175,6 +175,7 @@ class MovingCameraEngine(Engine):
         self._pending: Optional[_Update] = None
         self._last: Optional[MotionResult] = None
         self._last_matrix: Optional[np.ndarray] = None  # what the last frame applied
+        self._last_gain: Optional[float] = None  # the last frame's exposure gain
         self._last_frame: Optional[np.ndarray] = None
         self._last_mask: Optional[np.ndarray] = None
         self._in_shape: Optional[tuple] = None  # the input frames' (H, W) or (H, W, 3)
@@ -230,7 +231,7 @@ class MovingCameraEngine(Engine):
         """One frame at the working size, the stages of the module docstring: ``work`` is the
         frame (BGR or gray uint8, blurred by ``smooth``), ``gray`` its (h, w) uint8 gray image,
         ``rate`` the checked learning rate. Returns the (h, w) uint8 0/255 mask."""
-        self._last = self._last_matrix = None
+        self._last = self._last_matrix = self._last_gain = None
         empty = np.zeros(gray.shape, np.uint8)
         if float(cv2.meanStdDev(gray)[1][0, 0]) < self.config.min_contrast:
             # Blank or textureless frame: no motion can be measured; keep the model as it is.
@@ -257,7 +258,7 @@ class MovingCameraEngine(Engine):
             self._restart(work, gray, cur)
             self.last_status = SCENE_CUT
             return empty
-        self._last_matrix = applied
+        self._last_matrix, self._last_gain = applied, float(exposed[1])
         if self.still_switch is not None:
             still_score = self.still_switch.judge(work, result, compensated=self.bg,
                                                  compensated_score=score)
@@ -405,6 +406,36 @@ class MovingCameraEngine(Engine):
             return matrix.copy()
         scale = work_scale((h, w), (wh, ww))
         return np.linalg.solve(scale, matrix @ scale)
+
+    def frame_stats(self) -> Dict[str, Any]:
+        """What the engine saw of the last frame, for per-frame statistics (None where it has no
+        such quantity on that frame: the first, a blank frame, a scene cut).
+
+        ``status``: :attr:`last_status`; ``dx``, ``dy``: where :attr:`last_motion` (the motion
+        as applied, as ``--motion`` writes it) moved the frame's centre (input pixels); ``rotation`` (degrees) and ``scale`` of that motion's
+        linear part; ``inliers`` and ``vectors``: the motion vectors that agree with the fit,
+        and all the front end measured; ``gain``: what the frame was divided by to match the
+        model's exposure (1.0 without ``match_exposure``); ``model``: ``"still"`` or
+        ``"compensated"``, the background model that scored the frame.
+        """
+        stats: Dict[str, Any] = dict.fromkeys(
+            ("dx", "dy", "rotation", "scale", "inliers", "vectors", "gain", "model"))
+        stats["status"] = self.last_status
+        matrix = self.last_motion
+        if matrix is not None and self._last is not None:  # (the first frame measured none)
+            h, w = self._in_shape[:2]
+            centre = np.array([(w - 1) / 2.0, (h - 1) / 2.0, 1.0])
+            moved = matrix @ centre
+            stats["dx"], stats["dy"] = (moved[:2] / moved[2] - centre[:2]).tolist()
+            stats["rotation"] = float(np.degrees(np.arctan2(matrix[1, 0], matrix[0, 0])))
+            stats["scale"] = float(np.sqrt(abs(np.linalg.det(matrix[:2, :2]))))
+        if self._last is not None:
+            stats["inliers"] = self._last.motion.n_inliers
+            stats["vectors"] = int(len(self._last.points))
+        if self._last_gain is not None:  # (set only where a model scored the frame)
+            stats["gain"] = self._last_gain
+            stats["model"] = "still" if self.camera_still else "compensated"
+        return stats
 
     def get_background_image(self) -> Optional[np.ndarray]:
         """The background model's mean in the current frame's coordinates, at the input size

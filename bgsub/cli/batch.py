@@ -17,12 +17,7 @@ from bgsub.errors import InputError, OutputError
 
 _BATCH_HELP = """\
 several inputs (or a folder or glob of videos) make a batch: one output per input in the -o
-folder, named after the input (OUTDIR/v1.mkv for v1.mp4; --mask-format png: a folder
-OUTDIR/v1/ of binNNNNNN.png), and --vis, --flow-vis and --motion name folders too. An input
-whose complete outputs exist is skipped (--overwrite redoes it); OUTDIR/.bgsub-batch/ records
-which are complete. A failing input does not stop the others; the exit status is 1 when any
-failed. Ctrl-C stops the batch: finished outputs stay, running ones are partial but valid and
-are redone by the next run."""
+folder; a rerun skips complete ones (docs/cli.md, "Many inputs")."""
 
 
 def add_parallel_options(parser: argparse.ArgumentParser, *,
@@ -30,18 +25,13 @@ def add_parallel_options(parser: argparse.ArgumentParser, *,
     """``--jobs`` and ``--scheduler``: how many inputs at once, and where. ``one_by_default``:
     ``--jobs`` defaults to 1 (``compare`` and ``eval``: their timings are not shared cores', and
     Ctrl-C reports the frames processed), else to the usable cores."""
-    from bgsub.batch.threads import usable_cores
 
     group = parser.add_argument_group("many inputs")
-    default = ("1: one sequence after another, so an interrupted run still reports what it "
-               "processed" if one_by_default else f"the usable cores, {usable_cores()} here")
+    default = "1" if one_by_default else "the usable cores"
     group.add_argument("-j", "--jobs", type=int, default=1 if one_by_default else None,
-                       metavar="N", help="inputs processed at once in local processes, each "
-                                         f"engine on one core (default: {default})")
+                       metavar="N", help=f"inputs run at once (default: {default})")
     group.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                       help="run on the Dask cluster whose scheduler is at ADDRESS "
-                            "(tcp://host:8786; needs pip install 'bgsub[dask]'); inputs and "
-                            "outputs must be at the same paths on every worker")
+                       help="run on a Dask cluster (tcp://host:8786; bgsub[dask])")
 
 
 def add_batch_options(parser: argparse.ArgumentParser) -> None:
@@ -51,12 +41,10 @@ def add_batch_options(parser: argparse.ArgumentParser) -> None:
     add_parallel_options(parser)
     group = parser._action_groups[-1]
     group.description = _BATCH_HELP
-    group.add_argument("--mask-format", choices=MASK_FORMATS, default="mkv",
-                       help="what each input's masks are in a batch: a video of this type, or "
-                            "png for a folder of binNNNNNN.png (default: mkv)")
+    group.add_argument("--mask-format", choices=MASK_FORMATS, default="mkv", metavar="FORMAT",
+                       help=f"each input's masks: {', '.join(MASK_FORMATS)} (default: mkv)")
     group.add_argument("--summary", default=None, metavar="FILE.json",
-                       help="write a JSON summary of the batch: per input its status, frames, "
-                            "fps and output paths")
+                       help="write the batch's summary as JSON")
 
 
 def for_workers(args: argparse.Namespace, *names: str) -> None:

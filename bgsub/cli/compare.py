@@ -44,12 +44,11 @@ and --stop ask for fewer frames on purpose and draw no warning."""
 
 _EPILOG = """\
 examples:
-  bgsub compare data/real/BMS26_cars1 --methods grbm,compensated,mog2,knn -o cmp/ --skip-first
-  bgsub compare data/real -o cmp_all/ --skip-first --no-video       every sequence, family means
-  bgsub compare data/real/CDnet2014_cameraJitter_traffic -o cmp_traffic/ --methods mog2,grbm \\
-      --skip-first --no-roi-bmp                 (traffic's ROI.bmp has the wrong size)
-  bgsub compare clip.mp4 --gt clip_gt/ -o cmp/ --param mog2.history=200 --max-frames 100
-  bgsub compare scenes/pan_s0 -o cmp/ --width 160 --masks none     quick look, no masks written
+  bgsub samples scenes/ --category pan static                  scenes with ground truth
+  bgsub compare scenes/pan_s0 -o cmp/ --methods grbm,compensated,mog2,knn
+  bgsub compare scenes/ -o cmp_all/ --no-video                 every sequence, category means
+  bgsub compare samples/pan.mp4 --gt scenes/pan_s0 -o cmp_pan/ --max-frames 60
+  bgsub compare scenes/pan_s0 -o cmp_small/ --width 160 --methods grbm,mog2
 
 exit status: 0 done, 2 bad input or output (unknown method, missing input, REPORT_DIR exists),
 1 failure while processing

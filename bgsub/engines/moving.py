@@ -491,7 +491,8 @@ def register_frontend(frontend_type: Type[MotionFrontEnd]) -> None:
                                   fusion=stages[FusionConfig], known_motion=given)
 
     factory.__module__ = frontend_type.__module__  # the engine is the front end's
-    register_engine(name, frontend_type.description, params)(factory)
+    register_engine(name, frontend_type.description, params,
+                    common=frontend_type.common_params)(factory)
 
 
 def _register_builtins() -> None:

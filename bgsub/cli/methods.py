@@ -20,7 +20,7 @@ examples:
   bgsub methods                       every engine and its common parameters
   bgsub methods grbm --all            every parameter of grbm, grouped by stage
   bgsub methods mog2 --json           machine-readable, every parameter
-  bgsub run samples/pan.mp4 -o pan_masks.mkv --method mog2 --param var_threshold=25
+  bgsub run samples/pan.mp4 -o mog2_masks.mkv --method mog2 --param var_threshold=25
 """
 
 

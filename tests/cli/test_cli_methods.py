@@ -83,3 +83,20 @@ def test_a_parameter_like_no_other_gets_no_suggestion():
 def test_a_mistyped_method_gets_a_suggestion(bgsub_error, tmp_path):
     err = bgsub_error(["run", bundled_sample(), "-o", tmp_path / "m.mkv", "-m", "grbn"])
     assert "unknown method 'grbn'; did you mean 'grbm'?" in err
+
+
+@pytest.mark.parametrize("spec", available_engines(), ids=lambda spec: spec.name)
+def test_common_parameters_help_texts_stand_alone(spec):
+    # `bgsub methods NAME` shows them without the parameter listed above them in --all
+    for name in spec.params:
+        if spec.is_common(name):
+            assert not spec.params[name].help.startswith("..."), name
+
+
+def test_the_engine_stage_settings_help_texts_stand_alone():
+    from bgsub.engines.config import CameraConfig, EngineConfig
+    from bgsub.settings import config_params
+
+    for stage in (EngineConfig, CameraConfig):
+        for name, param in config_params(stage).items():
+            assert not param.help.startswith("..."), name

@@ -91,3 +91,10 @@ def test_the_python_api_examples_run(tmp_path, monkeypatch):
     for block in blocks:
         exec(compile(block, "python-api.md", "exec"), namespace)  # noqa: S102 (the docs' own code)
     assert (tmp_path / "masks.mkv").exists()
+
+
+def test_the_command_reference_states_how_masks_are_numbered():
+    # the rule `bgsub run --help` points to
+    text = " ".join((DOCS / "cli.md").read_text(encoding="utf-8").split())
+    assert "Masks are numbered by position in the input" in text
+    assert "starts again at `bin000001.png`" in text

@@ -561,7 +561,7 @@ def test_help_states_how_masks_are_numbered(capsys):
     with pytest.raises(SystemExit):
         main(["run", "--help"])
     out = " ".join(capsys.readouterr().out.split())
-    assert "numbered by position in INPUT" in out and "starts again at bin000001.png" in out
+    assert "numbered by position in INPUT" in out and "docs/cli.md" in out
     assert "numbered like the input frames" not in out
 
 

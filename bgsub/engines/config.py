@@ -101,9 +101,9 @@ class EngineConfig:
                                        "model calls less than this fraction of the frame "
                                        "foreground, with still_snr and still_versus (0 = off)",
                                   low=0, high=1)
-    still_snr: float = setting(4.0, "still_model also needs the fitted camera motion to be "
-                                    "less than this many times the scatter of the motion "
-                                    "vectors about it (no rigid motion stands out)", low=0)
+    still_snr: float = setting(
+        4.0, "still_model also needs the fitted camera motion to be less than this many times "
+             "the scatter of the motion vectors about it (no rigid motion stands out)", low=0)
     still_versus: float = setting(4.0, "still_model also needs its fraction, where the "
                                        "compensated model is not blind, to be at most this "
                                        "many times the fraction that one calls, plus 0.5 % (a "

@@ -45,11 +45,20 @@ def test_the_readme_picture_is_small_and_linked():
     assert "](docs/overlay.png)" in (ROOT / "README.md").read_text(encoding="utf-8")
 
 
+def _anchors(path):
+    """The anchors GitHub gives the headings of the Markdown file ``path``."""
+    headings = re.findall(r"^#+ (.*)$", path.read_text(encoding="utf-8"), re.M)
+    return {re.sub(r"[^\w\- ]", "", h.lower()).replace(" ", "-") for h in headings}
+
+
 @pytest.mark.parametrize("path", MARKDOWN, ids=lambda p: p.name)
-def test_relative_links_lead_to_files(path):
+def test_relative_links_lead_to_files_and_headings(path):
     text = path.read_text(encoding="utf-8")
-    for target in re.findall(r"\]\(([^)#:]+)(?:#[^)]*)?\)", text):
-        assert (path.parent / target).exists(), f"{path.name}: {target}"
+    for target, anchor in re.findall(r"\]\(([^)#:]*)(?:#([^)]*))?\)", text):
+        where = path.parent / target if target else path
+        assert where.exists(), f"{path.name}: {target}"
+        if anchor and where.suffix == ".md":
+            assert anchor in _anchors(where), f"{path.name}: {target}#{anchor}"
 
 
 def test_the_readme_points_at_no_shared_data():

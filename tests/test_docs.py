@@ -85,11 +85,9 @@ def test_a_stale_reference_is_found(tmp_path):
     assert "bgsub methods" in stale.read_text()
 
 
-def test_the_python_api_examples_run(tmp_path, monkeypatch):
-    from bgsub.engines import base
+def test_the_python_api_examples_run(tmp_path, monkeypatch, own_engines):
     from bgsub.samples import bundled_sample
 
-    monkeypatch.setattr(base, "_REGISTRY", dict(base._REGISTRY))  # the page registers "dis"
     (tmp_path / "samples").mkdir()
     shutil.copy(bundled_sample(), tmp_path / "samples" / "pan.mp4")
     monkeypatch.chdir(tmp_path)
@@ -107,3 +105,18 @@ def test_the_command_reference_states_how_masks_are_numbered():
     text = " ".join((DOCS / "cli.md").read_text(encoding="utf-8").split())
     assert "Masks are numbered by position in the input" in text
     assert "starts again at `bin000001.png`" in text
+
+
+def test_the_package_docstring_example_runs(tmp_path, monkeypatch):
+    import textwrap
+
+    import bgsub
+    from bgsub.samples import bundled_sample
+
+    (tmp_path / "samples").mkdir()
+    shutil.copy(bundled_sample(), tmp_path / "samples" / "pan.mp4")
+    monkeypatch.chdir(tmp_path)
+    example = textwrap.dedent(bgsub.__doc__.split("::\n", 1)[1].split("\n\n``", 1)[0])
+    namespace: dict = {}
+    exec(compile(example, "bgsub.__doc__", "exec"), namespace)  # noqa: S102
+    assert namespace["mask"].shape == (240, 320) and namespace["camera"].shape == (3, 3)

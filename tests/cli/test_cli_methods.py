@@ -8,7 +8,7 @@ import json
 import pytest
 
 from bgsub.cli import main
-from bgsub.engines import Param, base, available_engines, get_engine_spec, register_engine
+from bgsub.engines import Param, available_engines, get_engine_spec, register_engine
 from bgsub.engines.config import STAGES
 from bgsub.samples import bundled_sample
 
@@ -53,8 +53,7 @@ def test_methods_json_marks_common_and_stage(capsys):
     assert params["alpha"]["stage"] == "background model"
 
 
-def test_an_engine_registered_without_common_shows_every_parameter(capsys, monkeypatch):
-    monkeypatch.setattr(base, "_REGISTRY", dict(base._REGISTRY))  # registered for this test only
+def test_an_engine_registered_without_common_shows_every_parameter(capsys, own_engines):
     register_engine("_test_plain", "test: no common list",
                     params={"a": Param(1, "one"), "b": Param(2, "two")})(lambda **kw: None)
     assert main(["methods", "_test_plain"]) == 0
@@ -62,8 +61,7 @@ def test_an_engine_registered_without_common_shows_every_parameter(capsys, monke
     assert _listed(out) == ["a", "b", "roi"] and "--all" not in out
 
 
-def test_common_names_must_be_parameters(monkeypatch):
-    monkeypatch.setattr(base, "_REGISTRY", dict(base._REGISTRY))
+def test_common_names_must_be_parameters(own_engines):
     with pytest.raises(ValueError, match="nope"):
         register_engine("_test_bad_common", "test", params={"a": Param(1, "one")},
                         common=("nope",))(lambda **kw: None)

@@ -1,6 +1,25 @@
 """bgsub: moving-camera background subtraction with a factored gated RBM.
 
-The public Python API; the ``bgsub`` command is a thin layer over it.
+The public Python API; the ``bgsub`` command is a thin layer over it. Every engine has the shape
+of OpenCV's ``BackgroundSubtractor``::
+
+    import cv2
+    import bgsub
+
+    engine = bgsub.create_engine("grbm")          # or "compensated", "mog2", "knn", "framediff"
+    cap = cv2.VideoCapture("samples/pan.mp4")     # bgsub.samples.bundled_sample() is its path
+    while True:
+        ok, frame = cap.read()
+        if not ok:
+            break
+        mask = engine.apply(frame)                # (H, W) uint8: 0 background, 255 foreground
+    camera = engine.last_motion                   # (3, 3) camera motion into the last frame
+
+``bgsub.available_engines()`` lists the engines and their parameters (``bgsub methods``);
+``bgsub.io.sources.open_source`` reads files, folders, globs, cameras and URLs;
+``bgsub.io.loop.FrameLoop`` streams frames through engines into sinks; ``bgsub.evaluation``
+scores masks by CDnet 2014 rules; ``bgsub.samples`` makes scenes with exact ground truth. Errors
+a caller can act on are :class:`BgsubError` subclasses. More: docs/python-api.md.
 """
 
 __version__ = "0.1.0"

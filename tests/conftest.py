@@ -306,3 +306,16 @@ def read_frames(path) -> list:
         ok, frame = capture.read()
     capture.release()
     return frames
+
+
+@pytest.fixture
+def own_engines():
+    """Engines a test registers are removed when it ends (the built-in ones are loaded first,
+    so that they stay registered whichever test imports them)."""
+    from bgsub.engines import available_engines, base
+
+    available_engines()
+    before = set(base._REGISTRY)
+    yield
+    for name in set(base._REGISTRY) - before:
+        del base._REGISTRY[name]

@@ -18,7 +18,7 @@ from typing import Any, Callable, Dict, Iterable, List, Mapping, Optional, Tuple
 
 from bgsub.batch import record
 from bgsub.batch.inputs import BatchInput
-from bgsub.batch.job import DONE, FAILED, INTERRUPTED, NOT_STARTED, SKIPPED, JobResult, RunJob
+from bgsub.batch.job import DONE, FAILED, NOT_STARTED, SKIPPED, JobResult, RunJob
 from bgsub.batch.plan import OutputLayout
 from bgsub.errors import InputError, OutputError
 from bgsub.io.sinks import write_atomically

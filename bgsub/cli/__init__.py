@@ -49,12 +49,13 @@ _EPILOG = """\
 examples:
   bgsub samples --pan                                 copy the bundled sample to samples/pan.mp4
   bgsub run samples/pan.mp4 -o pan_masks.mkv          foreground masks of the bundled sample
-  bgsub run clip.mp4 -o masks/ --method mog2          CDnet-style binNNNNNN.png masks, OpenCV MOG2
-  bgsub eval masks/ path/to/cdnet/sequence            the seven CDnet 2014 metrics
-  bgsub samples scenes/ --seed 1                      synthetic moving-camera scenes with ground truth
-  bgsub methods                                       engines and their parameters
+  bgsub run samples/pan.mp4 -o pan_mog2/ -m mog2      binNNNNNN.png masks, OpenCV MOG2
+  bgsub samples scenes/ --category pan                a synthetic scene with ground truth
+  bgsub run scenes/pan_s0 -o pan_s0_masks/            its masks ...
+  bgsub eval pan_s0_masks/ scenes/pan_s0              ... scored: the seven CDnet 2014 metrics
+  bgsub methods                                       engines and their common parameters
 
-Run `bgsub COMMAND --help` for each command's options.
+Run `bgsub COMMAND --help` for each command's options; docs/cli.md has them all.
 """
 
 

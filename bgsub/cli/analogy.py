@@ -28,9 +28,9 @@ Output: 8-bit gray; binary models write probabilities (0-255), Gaussian models i
 
 _EPILOG = """\
 examples:
-  bgsub analogy x.png y.png x2.png -o y2.png                    (dots-translation model)
-  bgsub analogy x.png y.png x2.png -o y2.png --model dots-rotation --zoom 8
-  bgsub analogy a.png b.png c.png -o d.png --model natural
+  bgsub samples scenes/ --category pan                          frames to use
+  bgsub analogy scenes/pan_s0/input/in000010.jpg scenes/pan_s0/input/in000011.jpg \\
+      scenes/pan_s0/input/in000030.jpg -o y2.png --model natural --zoom 2
 """
 
 

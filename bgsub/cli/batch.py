@@ -19,30 +19,18 @@ from bgsub.errors import InputError, OutputError
 
 _BATCH_HELP = """\
 several inputs (or a folder or glob of videos) make a batch: one output per input in the -o
-folder, named after the input (OUTDIR/v1.mkv for v1.mp4; --mask-format png: a folder
-OUTDIR/v1/ of binNNNNNN.png), and --vis, --flow-vis, --motion, --objects (NAME.jsonl) and
---stats (NAME.csv) name folders too; --json prints the batch's summary. An input
-whose complete outputs exist is skipped, also when they were made with other settings (its line
-names the changes; --overwrite redoes it); OUTDIR/.bgsub-batch/ records which are complete. A
-failing input does not stop the others; the exit status is 1 when any failed. Ctrl-C stops the
-batch: finished outputs stay, running ones are partial but valid and are redone by the next
-run."""
+folder; a rerun skips complete ones (docs/cli.md, "Many inputs")."""
 
 
 def add_parallel_options(parser: argparse.ArgumentParser) -> None:
     """``--jobs`` and ``--scheduler``: how many inputs at once, and where. ``--jobs`` defaults
     to 1 in every command (an interrupted run reports what it processed, and timings are not
     shared cores'); 0 takes the usable cores."""
-    from bgsub.batch.threads import usable_cores
-
     group = parser.add_argument_group("many inputs")
     group.add_argument("-j", "--jobs", type=int, default=1, metavar="N",
-                       help="inputs processed at once in local processes, each engine on one "
-                            f"core (default: 1; 0: the usable cores, {usable_cores()} here)")
+                       help="inputs run at once (default: 1; 0: the usable cores)")
     group.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                       help="run on the Dask cluster whose scheduler is at ADDRESS "
-                            "(tcp://host:8786; needs pip install 'bgsub[dask]'); inputs and "
-                            "outputs must be at the same paths on every worker")
+                       help="run on a Dask cluster (tcp://host:8786; bgsub[dask])")
 
 
 def add_batch_options(parser: argparse.ArgumentParser) -> None:
@@ -52,12 +40,10 @@ def add_batch_options(parser: argparse.ArgumentParser) -> None:
     add_parallel_options(parser)
     group = parser._action_groups[-1]
     group.description = _BATCH_HELP
-    group.add_argument("--mask-format", choices=MASK_FORMATS, default=None,
-                       help="what each input's masks are in a batch: a video of this type, or "
-                            "png for a folder of binNNNNNN.png (default: mkv)")
+    group.add_argument("--mask-format", choices=MASK_FORMATS, default=None, metavar="FORMAT",
+                       help=f"{'/'.join(MASK_FORMATS)} masks per input (default: mkv)")
     group.add_argument("--summary", default=None, metavar="FILE.json",
-                       help="write a JSON summary of the batch: per input its status, frames, "
-                            "fps and output paths")
+                       help="write the batch's summary as JSON")
 
 
 def for_workers(args: argparse.Namespace, *names: str) -> None:

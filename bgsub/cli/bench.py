@@ -22,8 +22,8 @@ thread count you mean to use (e.g. OMP_NUM_THREADS=1)."""
 _EPILOG = """\
 examples:
   bgsub bench                                      all engines, 320x240, 50 frames, 3 repeats
-  bgsub bench --methods grbm,mog2 --size 640x480 --max-frames 100
-  bgsub bench --memory --json > bench.json         also peak memory per method, as JSON
+  bgsub bench --methods grbm,mog2 --size 640x480 --max-frames 100 --repeats 1
+  bgsub bench --methods mog2 --memory --json       also peak memory, as JSON
   OMP_NUM_THREADS=1 bgsub bench --methods grbm     single-threaded figure
 """
 

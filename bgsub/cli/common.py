@@ -10,6 +10,20 @@ from typing import Any, Iterable, List, Optional, Tuple
 from bgsub.errors import OutputError
 
 
+class HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """argparse's help with the description and epilog as written, and an option's value
+    named once: ``-m, --method NAME`` rather than ``-m NAME, --method NAME``, so that most
+    options take one line of ``--help``."""
+
+    def _format_action_invocation(self, action: argparse.Action) -> str:
+        if not action.option_strings or action.nargs == 0:
+            return super()._format_action_invocation(action)
+        value = self._format_args(action, self._get_default_metavar_for_optional(action))
+        short = [name for name in action.option_strings if not name.startswith("--")]
+        long = [name for name in action.option_strings if name.startswith("--")][:1]
+        return f"{', '.join(short + long)} {value}"  # further long spellings are aliases
+
+
 def add_source_options(parser: argparse.ArgumentParser) -> None:
     """Frame range and resizing options, passed to :func:`bgsub.io.sources.open_source`."""
     group = parser.add_argument_group("input frames")
@@ -25,8 +39,7 @@ def add_source_options(parser: argparse.ArgumentParser) -> None:
     size.add_argument("--width", type=int, default=None, metavar="PX",
                       help="resize frames to this width, keeping the aspect ratio")
     group.add_argument("--fps", type=float, default=None, metavar="F",
-                       help="the input's frame rate, for the videos written from it (default: "
-                            "what the input states; 25 for image folders)")
+                       help="the input's frame rate (default: as stated, or 25)")
 
 
 def source_kwargs(args: argparse.Namespace) -> dict:
@@ -69,12 +82,10 @@ def add_output_options(parser: argparse.ArgumentParser, *,
 
 def add_codec_option(parser: Any) -> None:
     """``--codec {auto,h264,mp4v}``: the codec of ``.mp4`` / ``.mov`` picture videos."""
-    from bgsub.io.h264 import CODEC_CHOICES, H264_EXTRA
+    from bgsub.io.h264 import CODEC_CHOICES
 
-    parser.add_argument("--codec", choices=CODEC_CHOICES, default="auto",
-                        help="codec of .mp4/.mov picture videos: H.264 (plays in web browsers; "
-                             f"needs PyAV: {H264_EXTRA}) or MPEG-4 part 2 (mp4v, desktop "
-                             "players); auto: H.264 when PyAV is installed (default)")
+    parser.add_argument("--codec", choices=CODEC_CHOICES, default="auto", metavar="CODEC",
+                        help="auto (H.264 if PyAV is there, else mp4v), h264, mp4v")
 
 
 def describe_codec(path: Any, codec: str) -> str:

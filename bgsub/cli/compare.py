@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import difflib
 from pathlib import Path
 from typing import Any, Dict, List
 
@@ -27,13 +28,13 @@ REPORT_DIR receives report.txt (also printed), report.csv and report.json; repor
 self-contained page to open in a browser (the table, charts of the F-measure per method, and per
 sequence and family for a dataset root, and a few frames of each input: input, ground truth,
 each method's mask); the masks of each method (METHOD/binNNNNNN.png, or METHOD.mkv with
---mask-format mkv); and side_by_side.mp4 (input, ground truth when there is one, and one labelled mask per
-method). The ground-truth tiles show CDnet's labels as gray levels: 255 (moving) white, 170
-(unknown) light grey, 85 (outside the ROI) mid grey, 50 (shadow) dark grey; dark blue where a
-frame has no ground truth. For a dataset root, masks and videos go to REPORT_DIR/SEQUENCE/.
-An existing REPORT_DIR that is not empty needs --overwrite, which removes the outputs of the
-compare run that wrote there before (those its report.json lists or, without one, the files
-named as compare names them) once the input is accepted; other files stay.
+--mask-format mkv); and side_by_side.mp4 (input, ground truth when there is one, and one
+labelled mask per method). The ground-truth tiles show CDnet's labels as gray levels: 255
+(moving) white, 170 (unknown) light grey, 85 (outside the ROI) mid grey, 50 (shadow) dark grey;
+dark blue where a frame has no ground truth. For a dataset root, masks and videos go to
+REPORT_DIR/SEQUENCE/. An existing REPORT_DIR that is not empty needs --overwrite, which removes
+the outputs of the compare run that wrote there before (those its report.json lists or, without
+one, the files named as compare names them) once the input is accepted; other files stay.
 
 Only frames inside the temporal ROI are scored; labels 85 and 170 are ignored. ROI.bmp is
 used for a single sequence and ignored for dataset roots (the real CDnet traffic ROI.bmp has the
@@ -44,12 +45,13 @@ and --stop ask for fewer frames on purpose and draw no warning."""
 
 _EPILOG = """\
 examples:
-  bgsub compare data/real/BMS26_cars1 --methods grbm,compensated,mog2,knn -o cmp/ --skip-first
-  bgsub compare data/real -o cmp_all/ --skip-first --no-video       every sequence, family means
-  bgsub compare data/real/CDnet2014_cameraJitter_traffic -o cmp_traffic/ --methods mog2,grbm \\
-      --skip-first --no-roi-bmp                 (traffic's ROI.bmp has the wrong size)
-  bgsub compare clip.mp4 --gt clip_gt/ -o cmp/ --param mog2.history=200 --max-frames 100
-  bgsub compare scenes/pan_s0 -o cmp/ --width 160 --mask-format none   quick look, no masks
+  bgsub samples scenes/ --category pan static                  scenes with ground truth
+  bgsub compare scenes/pan_s0 -o cmp/ --methods grbm,compensated,mog2,knn
+  bgsub compare scenes/ -o cmp_all/ --no-video                 every sequence, category means
+  bgsub compare samples/pan.mp4 --gt scenes/pan_s0 -o cmp_pan/ --max-frames 60 \\
+      --methods grbm,mog2 -p mog2.history=200                  one method's parameter
+  bgsub compare scenes/pan_s0 -o cmp_small/ --width 160 --methods grbm,mog2 \\
+      --mask-format none                                       quick look, no masks written
 
 exit status: 0 done, 2 bad input or output (unknown method, missing input, REPORT_DIR exists),
 1 failure while processing
@@ -160,8 +162,11 @@ def parse_method_params(pairs: List[str], methods: List[str]) -> Dict[str, Dict[
         targets = [method] if dot else [m for m in methods
                                          if method in get_engine_spec(m).params]
         if not targets and len(methods) > 1:
+            names = {n for m in methods for n in get_engine_spec(m).params}
+            close = difflib.get_close_matches(method, sorted(names), n=1)
+            guess = f"; did you mean {close[0]!r}?" if close else ""
             raise InputError(f"--param {pair!r}: none of the methods ({', '.join(methods)}) "
-                             f"has a parameter {method!r} (see `bgsub methods`)")
+                             f"has a parameter {method!r}{guess} (see `bgsub methods`)")
         for target in targets or methods:  # (one method: its own error names its parameters)
             grouped.setdefault(target, []).append(f"{name if dot else method}={value}")
     return {method: parse_params(method, rest) for method, rest in grouped.items()}

@@ -48,13 +48,16 @@ are scaled to the ground truth's size (nearest neighbour); other sizes are an er
 
 _EPILOG = """\
 examples:
-  bgsub eval masks/ data/cameraJitter/traffic --no-roi-bmp     one sequence
-  bgsub eval masks.mkv scenes/static_s1 --skip-first           a mask video, frame 1 left out
-  bgsub eval masks.mkv scenes/pan_s1 --start 30 --step 2       from `run --start 30 --step 2`
-  bgsub eval masks/ scenes/pan_s1 --step 2                     from `run --step 2 -o masks`
+  bgsub samples scenes/ --category pan static                  two scenes with ground truth
+  bgsub run scenes/pan_s0 -o results/pan_s0/                   PNG masks of one
+  bgsub eval results/pan_s0 scenes/pan_s0                      one sequence
+  bgsub run scenes/pan_s0 -o pan.mkv --start 30 --step 2
+  bgsub eval pan.mkv scenes/pan_s0 --start 30 --step 2         a video from run --start/--step
+  bgsub run scenes/static_s0 -o results/static_s0/
   bgsub eval results/ scenes/ --csv scores.csv                 every sequence under scenes/
-  bgsub eval results/ scenes/ --json > scores.json             machine-readable
-  bgsub eval cmp_all/ scenes/ --method grbm                    grbm's masks of a compare report
+  bgsub eval results/ scenes/ --json                           machine-readable
+  bgsub compare scenes/ -o cmp/ --methods grbm,mog2
+  bgsub eval cmp/ scenes/ --method grbm                        grbm's masks of a compare report
 
 exit status: 0 evaluated, 2 bad input (missing frames, size mismatch, bad ground truth)
 """

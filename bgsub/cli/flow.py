@@ -41,12 +41,11 @@ written beside it (--max-magnitude, or the picture's largest)."""
 
 _EPILOG = """\
 examples:
-  bgsub flow frame10.png frame11.png -o flow.flo
-  bgsub flow frame10.png frame11.png -o flow.flo --vis flow.png
-  bgsub flow a.jpg b.jpg -o ab.flo --vis ab_arrows.png --arrows --arrow-step 12
-  bgsub flow dots_a.png dots_b.png -o ab.flo --model dots-translation
-  bgsub flow dots_a.png dots_b.png -o ab.flo --model dots-rotation --vis ab.png --arrows
-  bgsub flow clip.mp4 -o clip_flow.mp4 --max-motion 30 --stop 100
+  bgsub samples scenes/ --category pan                          frames to read
+  bgsub flow scenes/pan_s0/input/in000010.jpg scenes/pan_s0/input/in000011.jpg -o f.flo
+  bgsub flow scenes/pan_s0/input/in000010.jpg scenes/pan_s0/input/in000011.jpg -o a.flo \\
+      --vis arrows.png --arrows --arrow-step 12                 arrows, as in the paper
+  bgsub flow samples/pan.mp4 -o pan_flow.mp4 --max-motion 30 --stop 40
 """
 
 _PICTURE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp"}

@@ -60,9 +60,7 @@ def read_params(path: Any, method: str) -> Dict[str, Any]:
     for key, value in _load(path).items():
         name = key.replace("-", "_")
         if name not in spec.params:
-            known = ", ".join(spec.params) or "none"
-            raise InputError(f"{path}: unknown key {key!r}: method {method!r} has no such "
-                             f"parameter (its parameters: {known})")
+            raise InputError(f"{path}: key {key!r}: {spec.unknown_param(name)}")
         try:
             params[name] = _value(spec.params[name], name, value)
         except InputError as err:

@@ -16,7 +16,6 @@ from bgsub import engines
 from bgsub.batch.plan import OPTIONS
 from bgsub.cli import batch, common, run_extras, run_inputs
 from bgsub.errors import InputError
-from bgsub.io.frame_stats import COLUMNS as STATS_COLUMNS
 from bgsub.io.loop import FrameLoop, RunStats
 from bgsub.io.pipeline import OutputRequest, open_outputs
 from bgsub.io.sinks import is_video_path
@@ -24,91 +23,52 @@ from bgsub.io.sources import FrameSource, VideoInfo, open_source
 from bgsub.io.writers import ProgressBar
 
 _DESCRIPTION = """\
-Find the moving objects in a video and write one foreground mask per frame (0 = background, 255
-= foreground). INPUT is a video file, a folder of images (natural order; a CDnet sequence
-folder reads its input/ folder), a quoted glob pattern, or a live source opened as OpenCV opens
-it: a camera index (0), a video device (/dev/video0) or a URL (rtsp://...,
-http://.../clip.mp4), read until it ends, --max-frames, or Ctrl-C (a stall or a drop is
-reported in one line). OUTPUT is a mask video (.mkv or .avi: lossless FFV1; .mp4 or .mov:
-lossy) or, for a name without an extension, a folder of CDnet-style binNNNNNN.png masks; other
-extensions are refused. Masks are numbered by position in INPUT, whatever the frames' file
-names: bin000001.png is the mask of INPUT's first frame (the video's first, or the folder's or
-glob's first image in natural order), and --start/--step keep that count (--start 100 --step 2:
-bin000101.png, bin000103.png, ...). So a whole CDnet input/ folder gives bin000123.png for
-in000123.jpg, but a glob or folder of part of a sequence ('input/in00002*.jpg') starts again at
-bin000001.png: to keep the input's numbers, give the whole folder with --start/--stop. A mask
-video holds no frame numbers: to score one written with --start/--step, give `bgsub eval` the
-same --start/--step/--stop.
-
-Outputs are written under a temporary name and renamed when done; after Ctrl-C they hold the
-frames processed so far and are still valid."""
+Find the moving objects in a video: one mask per frame (0 background, 255 foreground), as a
+lossless video (.mkv, .avi) or, for a name without an extension, a folder of binNNNNNN.png
+numbered by position in INPUT. Ctrl-C leaves valid, partial outputs."""
 
 _EPILOG = """\
 examples:
-  bgsub run clip.mp4 -o masks.mkv                      masks as a lossless video
-  bgsub run cdnet/cameraJitter/traffic -o traffic/     binNNNNNN.png masks for `bgsub eval`
-  bgsub run clip.mp4 -o masks.mkv --vis overlay.mp4    also a video of the masks over the input
-  bgsub run clip.mp4 -o masks.mkv --method mog2 --param history=200
-  bgsub run 'frames/*.png' -o masks/ --start 100 --stop 400 --step 2 --width 320
-  bgsub run clip.mp4 -o masks.mkv --flow-vis flow.mp4  the engine's motion field and camera fit
-  bgsub run clip.mp4 -o masks.mkv --motion cam.npy     the estimated camera motion of every frame
-  bgsub run clip.mp4 -o masks.mkv --objects objects.jsonl --vis overlay.mp4
-  bgsub run clip.mp4 -o masks.mkv --stats stats.csv   per-frame camera motion, inliers, time
-  bgsub run clip.mp4 -o masks.mkv --config grbm.toml --json
-  bgsub run 0 -o camera.mkv --max-frames 500           a camera, 500 frames (or until Ctrl-C)
-  bgsub run rtsp://cam.local/live -o live.mkv --stall-timeout 5
-  bgsub run clip.mp4 -o masks.mkv --roi roi.png        no foreground outside roi.png's white
-  bgsub run clip.mp4 -o masks.mkv --motion-in cam.npy  a known camera motion, not estimated
-  bgsub run clip.mp4 -o masks.mkv --model natural      grbm's model (or an .npz path)
+  bgsub run samples/pan.mp4 -o pan_masks.mkv                    masks as a lossless video
+  bgsub run samples/pan.mp4 -o pan_masks/                       binNNNNNN.png, for bgsub eval
+  bgsub run samples/pan.mp4 -o m1.mkv --vis overlay.mp4 --objects objects.jsonl
+  bgsub run samples/pan.mp4 -o m2.mkv -m mog2 -p history=200    another engine and parameter
+  bgsub run samples/pan.mp4 -o m3.mkv --motion cam.npy --max-frames 60
+  bgsub run samples/pan.mp4 -o m4.mkv --motion-in cam.npy --max-frames 60
+  bgsub run samples/pan.mp4 -o m5.mkv --stats stats.csv         per-frame figures, for tuning
+  bgsub run samples/ -o batch/ --summary batch.json             every video of a folder
 
---objects writes the tracked objects of every frame (and --vis draws their boxes and ids);
---config reads engine parameters from a TOML file; --json prints a summary for scripts.
-`bgsub methods` lists the engines and their parameters."""
+Numbering, formats, live sources, batches, exit statuses: docs/cli.md; engines: bgsub methods"""
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         "run", help="foreground masks of a video or image folder", description=_DESCRIPTION,
-        epilog=_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog=_EPILOG, formatter_class=common.HelpFormatter,
+        usage="bgsub run INPUT [INPUT ...] -o OUTPUT [options]",
     )
     parser.add_argument("input", metavar="INPUT", nargs="+",
-                        help="video file, image folder, glob pattern such as 'frames/*.png', "
-                             "camera index, video device or URL; several (or a folder or glob "
-                             "of videos) make a batch")
+                        help="video, folder, glob, camera or URL (several: a batch)")
     parser.add_argument("-o", "--output", required=True, metavar="OUTPUT",
-                        help="mask video (.mkv/.avi lossless, .mp4/.mov lossy), or a name without "
-                             "an extension for a folder of binNNNNNN.png masks")
+                        help="mask video (.mkv/.avi lossless) or folder of PNG masks")
     parser.add_argument("-m", "--method", "--methods", dest="method", default=None,
-                        metavar="NAME", help=f"engine to use (default: "
-                                             f"{engines.DEFAULT_METHOD}; see `bgsub methods`)")
-    parser.add_argument("-p", "--param", action="append", default=[], metavar="KEY=VALUE",
-                        help="set an engine parameter, e.g. --param history=200 (repeatable; "
-                             "METHOD.KEY=VALUE, as compare and bench take it, works too)")
+                        metavar="NAME", help=f"engine (default: {engines.DEFAULT_METHOD}; "
+                                             f"see `bgsub methods`)")
+    parser.add_argument("-p", "--param", action="append", default=[], metavar="KEY=VAL",
+                        help="an engine parameter, e.g. -p stride=12 (repeatable)")
     parser.add_argument("--vis", metavar="VIDEO", default=None,
-                        help="also write the input with its mask overlaid, beside the mask "
-                             "(.mp4, .avi or .mkv)")
+                        help="also the masks over the input, as a video")
     parser.add_argument("--flow-vis", metavar="VIDEO", default=None,
-                        help="also write the engine's picture of the motion it saw (engines "
-                             "with debug_image, such as grbm)")
+                        help="also the motion field and camera fit (grbm)")
     common.add_codec_option(parser)
     parser.add_argument("--motion", metavar="FILE.npy", default=None,
-                        help="also write the estimated camera motion: (N, 3, 3) float64, entry "
-                             "k maps pixels of frame k-1 to frame k, as bgsub samples' "
-                             "camera_motion.npy (identity first; NaN where none was measured; "
-                             "moving-camera engines)")
+                        help="also the camera motion, (N, 3, 3) homographies")
     parser.add_argument("--stats", metavar="FILE.csv", default=None,
-                        help="also write per-frame statistics for tuning, one row per frame: "
-                             + ", ".join(STATS_COLUMNS) + " (frame: the mask's number; dx, dy: "
-                             "the camera motion at the frame's centre, px; rotation in degrees; "
-                             "inliers of vectors: the camera fit's support; foreground: the "
-                             "mask's share; gain: the exposure match; model: still or "
-                             "compensated; ms: the engine's time). A cell is empty where the "
-                             "engine has no such quantity")
+                        help="also per-frame figures for tuning, as CSV")
     run_extras.add_options(parser)
     common.add_source_options(parser)
     run_inputs.add_options(parser)
-    common.add_output_options(parser, quiet_help="no progress bar and no notes on stderr "
-                                                 "(warnings and errors are still printed)")
+    common.add_output_options(parser, quiet_help="no progress bar and no notes on stderr")
     batch.add_batch_options(parser)
     parser.set_defaults(handler=run)
 

@@ -16,19 +16,13 @@ from bgsub.objects import TrackerConfig
 
 def add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--config", metavar="FILE.toml", default=None,
-                        help="engine parameters from a TOML file (`name = value`, the names "
-                             "--param takes); --param overrides it")
+                        help="engine parameters from a TOML file; -p overrides it")
     parser.add_argument("--json", action="store_true",
-                        help="print the run's summary as one JSON object on stdout: frames, "
-                             "seconds, fps, complete, statuses, outputs (a batch: its summary, "
-                             "as --summary writes it)")
+                        help="print the run's (or batch's) summary as JSON on stdout")
     parser.add_argument("--objects", metavar="FILE", default=None,
-                        help="also write the objects of every frame, tracked across frames: "
-                             ".jsonl (one JSON line per frame) or .csv (MOTChallenge); "
-                             "--vis then draws their boxes and ids")
+                        help="also the tracked objects: .jsonl or .csv (MOT)")
     parser.add_argument("--min-object-area", type=int, default=None, metavar="PX",
-                        help=f"leave out objects of fewer pixels (default: "
-                             f"{TrackerConfig.min_area}; with --objects)")
+                        help=f"smallest object in pixels (default: {TrackerConfig.min_area})")
 
 
 def engine_params(args: argparse.Namespace, method: str) -> Dict[str, Any]:

@@ -15,26 +15,16 @@ def add_options(parser: argparse.ArgumentParser) -> None:
     from bgsub.io.streams import DEFAULT_STALL_SECONDS
 
     parser.add_argument("--model", default=None, metavar="M",
-                        help="grbm's gated RBM: a shipped model name or an .npz path (as "
-                             "`bgsub flow --model`; the same as --param model=M)")
+                        help="grbm's model: a shipped name or an .npz path")
     parser.add_argument("--roi", metavar="MASK.png", default=None,
-                        help="region of interest: white = watched, the frames' size or their "
-                             "aspect ratio (scaled with nearest neighbour); no foreground "
-                             "outside it, and moving-camera methods leave the motion there out "
-                             "of the camera fit (the same as --param roi=MASK.png)")
+                        help="no foreground outside the mask's white pixels")
     parser.add_argument("--motion-in", metavar="FILE.npy", default=None,
-                        help="use this camera motion instead of estimating it: (N, 3, 3), as "
-                             "--motion writes it (entry k maps frame k-1 to frame k, counted as "
-                             "the frames are read: give the same --start/--step); entries all "
-                             "NaN, and frames past its end, are estimated (moving-camera "
-                             "methods)")
+                        help="a known camera motion, as --motion writes it")
     group = next(g for g in parser._action_groups if g.title == "input frames")
     group.add_argument("--max-frames", type=int, default=None, metavar="N",
-                       help="process at most N frames (with --start/--step/--stop; a camera "
-                            "or stream otherwise runs until it ends or Ctrl-C)")
+                       help="process at most N frames")
     group.add_argument("--stall-timeout", type=float, default=None, metavar="S",
-                       help="a camera or URL that gives no frame for S seconds is taken as "
-                            "stalled: the run stops there, outputs valid (default: "
+                       help=f"stop a live source silent for S s (default: "
                             f"{DEFAULT_STALL_SECONDS:g})")
 
 

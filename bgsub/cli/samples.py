@@ -31,7 +31,7 @@ _EPILOG = """\
 examples:
   bgsub samples                                   every category, seed 0, into bgsub-samples/
   bgsub samples scenes/ --category pan --seed 0   the scene shipped as samples/pan.mp4
-  bgsub samples scenes/ --category pan jitter --seed 0 1 2 --max-frames 60
+  bgsub samples more/ --category pan jitter --seed 0 1 2 --max-frames 60
   bgsub samples scenes/ --size 640x480 --overwrite
   bgsub samples --list                            the categories and what their camera does
   bgsub samples --pan                             copy the bundled sample video to samples/pan.mp4

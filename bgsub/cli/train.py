@@ -47,8 +47,8 @@ examples:
   bgsub train --data shifted-images --max-shift 4 --curriculum 50:1,100:2,150:3 \\
       --epochs 600 --lr-schedule linear -o natural.npz
         the shipped `natural` model (~7 min; photographs need pip install -e '.[train]')
-  bgsub train --data clip1.mp4 clip2.mp4 --video-scale 0.5 -o mine.npz
-        your own footage, unsupervised
+  bgsub train --data samples/pan.mp4 --video-scale 0.5 -o mine.npz
+        your own footage (here the bundled sample), unsupervised
 """
 
 

@@ -13,6 +13,7 @@ Engines register themselves with :func:`register_engine`; the CLI (``bgsub run -
 
 from __future__ import annotations
 
+import difflib
 import functools
 import importlib
 import math
@@ -20,7 +21,7 @@ import numbers
 import threading
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
-from typing import Any, Callable, Dict, Iterable, List, Optional
+from typing import Any, Callable, Dict, Iterable, List, Optional, Tuple
 
 import cv2
 import numpy as np
@@ -338,15 +339,27 @@ class EngineSpec:
     description: str
     factory: Callable[..., Engine]
     params: Dict[str, Param] = field(default_factory=dict)
+    #: The parameters most users tune (``bgsub methods NAME`` shows these; ``--all`` every
+    #: one); None = every parameter.
+    common: Optional[Tuple[str, ...]] = None
+
+    def is_common(self, name: str) -> bool:
+        """Whether parameter ``name`` is one of the few most users tune."""
+        return self.common is None or name in self.common
+
+    def unknown_param(self, key: str) -> str:
+        """The one-line message for a parameter ``key`` this engine does not take, with the
+        closest name when one is close."""
+        close = difflib.get_close_matches(key, list(self.params), n=1)
+        guess = f"; did you mean {close[0]!r}?" if close else ""
+        return (f"unknown parameter {key!r} for {self.name}{guess} "
+                f"(bgsub methods {self.name} --all lists them)")
 
     def create(self, **params: Any) -> Engine:
         """Build the engine; unknown or ill-typed parameters raise :class:`InputError`."""
         unknown = sorted(set(params) - set(self.params))
         if unknown:
-            known = ", ".join(self.params) or "none"
-            raise InputError(
-                f"method {self.name!r} has no parameter {unknown[0]!r} (its parameters: {known})"
-            )
+            raise InputError(self.unknown_param(unknown[0]))
         values = {name: p.default for name, p in self.params.items()}
         for name, value in params.items():
             try:
@@ -369,16 +382,22 @@ _load_lock = threading.RLock()
 
 
 def register_engine(
-    name: str, description: str, params: Optional[Dict[str, Param]] = None
+    name: str, description: str, params: Optional[Dict[str, Param]] = None, *,
+    common: Optional[Iterable[str]] = None,
 ) -> Callable[[Callable[..., Engine]], Callable[..., Engine]]:
     """Decorator: register ``factory(**params) -> Engine`` under ``name``. Every engine also
     takes :data:`ROI` (``roi``), which the registry applies (:attr:`Engine.roi`), not the
-    factory."""
+    factory. ``common`` names the parameters most users tune (default: all of them);
+    :class:`ValueError` for a name that is not a parameter."""
 
     def decorate(factory: Callable[..., Engine]) -> Callable[..., Engine]:
         table = dict(params or {})
         table.setdefault("roi", ROI)  # (an engine may take "roi" itself)
-        _REGISTRY[name] = EngineSpec(name, description, factory, table)
+        chosen = None if common is None else tuple(common)
+        stray = sorted(set(chosen or ()) - set(table))
+        if stray:
+            raise ValueError(f"engine {name!r}: common names no parameter: {stray}")
+        _REGISTRY[name] = EngineSpec(name, description, factory, table, chosen)
         return factory
 
     return decorate
@@ -427,8 +446,11 @@ def get_engine_spec(name: str) -> EngineSpec:
     try:
         return _REGISTRY[name]
     except KeyError:
-        known = ", ".join(spec.name for spec in available_engines())
-        raise InputError(f"unknown method {name!r} (available: {known})") from None
+        names = [spec.name for spec in available_engines()]
+        close = difflib.get_close_matches(name, names, n=1)
+        guess = f"; did you mean {close[0]!r}?" if close else ""
+        raise InputError(f"unknown method {name!r}{guess} (available: {', '.join(names)})"
+                         ) from None
 
 
 def create_engine(name: Optional[str] = None, **params: Any) -> Engine:
@@ -446,8 +468,7 @@ def parse_params(name: str, pairs: Iterable[str]) -> Dict[str, Any]:
         if not sep or not key:
             raise InputError(f"--param takes key=value, not {pair!r}")
         if key not in spec.params:
-            known = ", ".join(spec.params) or "none"
-            raise InputError(f"method {name!r} has no parameter {key!r} (its parameters: {known})")
+            raise InputError(spec.unknown_param(key))
         try:
             parsed[key] = spec.params[key].parse(key, text)
         except InputError as err:

@@ -249,6 +249,7 @@ _MOG2_PARAMS = {
     "mog2",
     "OpenCV MOG2 mixture of Gaussians (Zivkovic); static camera only",
     params=_MOG2_PARAMS,
+    common=("history", "var_threshold", "detect_shadows", "learning_rate", "roi"),
 )
 def make_mog2(
     *,
@@ -336,6 +337,7 @@ _KNN_PARAMS = {
     "knn",
     "OpenCV KNN per-pixel sample sets (Zivkovic & van der Heijden); static camera only",
     params=_KNN_PARAMS,
+    common=("history", "dist2_threshold", "detect_shadows", "learning_rate", "roi"),
 )
 def make_knn(
     *,

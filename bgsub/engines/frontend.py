@@ -40,7 +40,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import Any, ClassVar, Dict, Mapping, Optional
+from typing import Any, ClassVar, Dict, Mapping, Optional, Tuple
 
 import numpy as np
 
@@ -113,6 +113,10 @@ class MotionFrontEnd(ABC):
     config_type: ClassVar[Optional[type]] = None
     #: Defaults of the engine's stage settings (by field name) that this front end replaces.
     stage_defaults: ClassVar[Mapping[str, Any]] = {}
+    #: The engine's parameters most users tune (``bgsub methods NAME``; ``--all`` lists every
+    #: one): the stages' few, to which a front end adds its own.
+    common_params: ClassVar[Tuple[str, ...]] = ("work_width", "smooth", "threshold", "overlap",
+                                                "learning_rate")
 
     def __init__(self, config: Any = None) -> None:
         if config is None and self.config_type is not None:

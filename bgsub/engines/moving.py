@@ -412,11 +412,12 @@ class MovingCameraEngine(Engine):
         such quantity on that frame: the first, a blank frame, a scene cut).
 
         ``status``: :attr:`last_status`; ``dx``, ``dy``: where :attr:`last_motion` (the motion
-        as applied, as ``--motion`` writes it) moved the frame's centre (input pixels); ``rotation`` (degrees) and ``scale`` of that motion's
-        linear part; ``inliers`` and ``vectors``: the motion vectors that agree with the fit,
-        and all the front end measured; ``gain``: what the frame was divided by to match the
-        model's exposure (1.0 without ``match_exposure``); ``model``: ``"still"`` or
-        ``"compensated"``, the background model that scored the frame.
+        as applied, as ``--motion`` writes it) moved the frame's centre (input pixels);
+        ``rotation`` (degrees) and ``scale`` of that motion's linear part; ``inliers`` and
+        ``vectors``: the motion vectors that agree with the fit, and all the front end measured;
+        ``gain``: what the frame was divided by to match the model's exposure (1.0 without
+        ``match_exposure``); ``model``: ``"still"`` or ``"compensated"``, the background model
+        that scored the frame.
         """
         stats: Dict[str, Any] = dict.fromkeys(
             ("dx", "dy", "rotation", "scale", "inliers", "vectors", "gain", "model"))
@@ -522,7 +523,8 @@ def register_frontend(frontend_type: Type[MotionFrontEnd]) -> None:
                                   fusion=stages[FusionConfig], known_motion=given)
 
     factory.__module__ = frontend_type.__module__  # the engine is the front end's
-    register_engine(name, frontend_type.description, params)(factory)
+    register_engine(name, frontend_type.description, params,
+                    common=frontend_type.common_params)(factory)
 
 
 def _register_builtins() -> None:

@@ -182,10 +182,26 @@ class ComparisonReport:
             writer.writerow(record)
         return buffer.getvalue()
 
+    def ranking(self) -> List[ComparisonRow]:
+        """The rows that answer "which method is best": the overall means of a dataset, else
+        each method's row of the one input, sorted by F (best first, unscored last); empty
+        for several inputs without means or without ground truth."""
+        rows = list(self.overall) if self.overall else list(self.rows)
+        if not self.has_metrics or (not self.overall and len({r.name for r in rows}) > 1):
+            return []
+        return sorted(rows, key=lambda row: _sort_key(row.metrics))
+
     def to_text(self) -> str:
-        """The comparison as a fixed-width table with the settings that shaped it."""
+        """The comparison as a fixed-width table, after the methods ranked by F and the
+        settings that shaped it."""
         lines = [f"bgsub compare: {self.input}", f"methods: {', '.join(self.methods)}"]
-        settings = ", ".join(f"{k}={v}" for k, v in self.settings.items())
+        ranked = self.ranking()
+        if ranked:
+            lines.append("ranked by F: " + ", ".join(
+                f"{row.method} {_f_text(row.metrics)}" + (" (best)" if k == 0 else "")
+                for k, row in enumerate(ranked)))
+        settings = "; ".join(f"{k.replace('_', ' ')}: {setting_text(v)}"
+                             for k, v in self.settings.items())
         if settings:
             lines.append(f"settings: {settings}")
         lines += [TIMING_NOTE, ""]
@@ -240,6 +256,37 @@ class ComparisonReport:
                 (folder / name).write_text(text)
             except OSError as err:
                 raise OutputError(f"cannot write {folder / name}: {err.strerror}") from None
+
+
+#: The method the reports are about: highlighted wherever it is ranked.
+OURS = "grbm"
+
+
+def _sort_key(metrics: Optional[Metrics]) -> float:
+    """Best F first; an undefined F (no metrics, or nan) last."""
+    f = metrics.f_measure if metrics is not None else math.nan
+    return math.inf if math.isnan(f) else -f
+
+
+def _f_text(metrics: Optional[Metrics]) -> str:
+    f = metrics.f_measure if metrics is not None else math.nan
+    return "n/a" if math.isnan(f) else f"{f:.3f}"
+
+
+def setting_text(value: Any) -> str:
+    """A setting's value as a reader writes it: "-" for none, yes/no, ``k=v`` lists (engine
+    parameters by method: ``mog2: history=200``)."""
+    if value is None:
+        return "-"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, dict):
+        parts = [f"{k}: {setting_text(v)}" if isinstance(v, dict) else f"{k}={setting_text(v)}"
+                 for k, v in value.items()]
+        return "; ".join(part for part in parts if not part.endswith(": -")) or "-"
+    if isinstance(value, (list, tuple)):
+        return "; ".join(map(str, value)) or "-"
+    return str(value)
 
 
 def _metric_cells(metrics: Optional[Metrics]) -> str:

@@ -5,9 +5,11 @@ here, the pictures are ``data:`` URIs (a few frames per input, shrunk; see
 :mod:`bgsub.evaluation.report_frames`). Every text that comes from the run (sequence, family and
 method names, the input's path, notes) is HTML-escaped.
 
-The page holds the settings and warnings, bar charts of the F-measure per method (and, for a
-dataset root, per sequence and per family; frames per second when nothing was scored), the
-metrics table (one row per sequence and method, then family and overall means), and per input
+The page leads with the answer: the methods ranked by F (:meth:`ComparisonReport.ranking`), the
+best marked and ``grbm`` highlighted, and a sentence on what F, precision and recall mean. Then
+the warnings, bar charts of the F-measure per method (and, for a dataset root, per sequence and
+per family; frames per second when nothing was scored), the metrics table (one row per sequence
+and method, then family and overall means), the settings as a table, and per input
 its frames: input, ground truth (when there is one) and each method's mask, and its
 ``side_by_side.mp4``: played in the page when it is H.264, linked otherwise (by a relative
 address, so the page and the videos move together).
@@ -23,9 +25,10 @@ from typing import Callable, List, Optional, Sequence, Tuple, Union
 from urllib.parse import quote
 
 from bgsub.errors import OutputError
-from bgsub.evaluation.compare_report import TIMING_NOTE, ComparisonReport, ComparisonRow
+from bgsub.evaluation.compare_report import (OURS, TIMING_NOTE, ComparisonReport, ComparisonRow,
+                                             setting_text)
 from bgsub.evaluation.metrics import METRIC_NAMES, METRIC_TITLES
-from bgsub.evaluation.report_frames import Picture, SequenceFrames
+from bgsub.evaluation.report_frames import THUMB_WIDTH, Picture, SequenceFrames
 
 PathLike = Union[str, "Path"]
 
@@ -44,9 +47,12 @@ tr.family td { background: #f4f4f4; } tr.overall td { background: #e8eef8; font-
 figure { display: inline-block; margin: 0 0.4em 0.4em 0; text-align: center; }
 figcaption { font-size: 0.75em; color: #333; }
 img { display: block; image-rendering: pixelated; border: 1px solid #999; }
+figure img { width: THUMB_WIDTHpx; height: auto; }
+tr.best td { font-weight: bold; } tr.ours td { background: #fff4d6; }
+.mark { color: #0a6; font-weight: bold; }
 .frame { margin-bottom: 0.6em; }
 video { display: block; max-width: 100%; background: #000; }
-"""
+""".replace("THUMB_WIDTH", str(THUMB_WIDTH))  # every thumbnail one size, whatever its frame's
 
 # Chart geometry (pixels).
 _LABEL_W, _BAR_AREA_W, _VALUE_W = 190, 380, 60
@@ -182,7 +188,8 @@ def _table(report: ComparisonReport) -> str:
         for name in METRIC_NAMES:
             value = getattr(row.metrics, name) if row.metrics is not None else None
             cells.append(f"<td>{_number(value, 3 if name == 'pwc' else 4)}</td>")
-        body.append(f'<tr class="{_e(row.level)}">{"".join(cells)}</tr>')
+        ours = " ours" if row.method == OURS else ""
+        body.append(f'<tr class="{_e(row.level)}{ours}">{"".join(cells)}</tr>')
     return (f'<table class="metrics"><thead><tr>{head}</tr></thead>'
             f'<tbody>{"".join(body)}</tbody></table>')
 
@@ -222,9 +229,45 @@ def _frames(shown: SequenceFrames, codec: Optional[str] = None) -> str:
     return "\n".join(lines)
 
 
+#: What the figures mean, in one sentence at the top of the page.
+METRICS_SENTENCE = (
+    "Precision is the share of the pixels a method calls foreground that are foreground in the "
+    "ground truth, recall the share of the true foreground it finds, and F their harmonic mean "
+    "(2PR / (P + R)): 1 is perfect, 0 finds nothing right.")
+
+def _answer(report: ComparisonReport) -> str:
+    """The methods ranked by F, the best marked and ours highlighted, with what F means."""
+    ranked = report.ranking()
+    if not ranked:
+        return ""
+    head = "".join(f"<th>{t}</th>" for t in ("", "method", "F", "precision", "recall", "fps"))
+    body = []
+    for place, row in enumerate(ranked, 1):
+        classes = " ".join(c for c, on in (("best", place == 1), ("ours", row.method == OURS))
+                           if on)
+        mark = ' <span class="mark">best</span>' if place == 1 else ""
+        metrics = row.metrics
+        cells = [f"<td>{place}</td>", f'<td class="text">{_e(row.method)}{mark}</td>',
+                 f"<td>{_number(_f(row), 3)}</td>",
+                 f"<td>{_number(metrics.precision if metrics else None, 3)}</td>",
+                 f"<td>{_number(metrics.recall if metrics else None, 3)}</td>",
+                 f"<td>{_number(row.fps, 1)}</td>"]
+        body.append(f'<tr class="{classes}">{"".join(cells)}</tr>')
+    return (f'<table class="answer"><thead><tr>{head}</tr></thead><tbody>{"".join(body)}'
+            f'</tbody></table><p class="note">{_e(METRICS_SENTENCE)}</p>')
+
+
+def settings_table(settings: dict) -> str:
+    """The run's settings as a two-column table (engine parameters as ``key=value``)."""
+    rows = "".join(f'<tr><td class="text">{_e(k.replace("_", " "))}</td>'
+                   f'<td class="text">{_e(setting_text(v))}</td></tr>'
+                   for k, v in settings.items())
+    return f'<table class="settings"><tbody>{rows}</tbody></table>'
+
+
 def render_html(report: ComparisonReport) -> str:
-    """The whole page, as text."""
-    settings = ", ".join(f"{k}={v}" for k, v in report.settings.items())
+    """The whole page, as text: the answer (methods ranked by F) first, then the charts, the
+    figures, the settings and the frames."""
     warnings = "".join(f'<p class="warn">{_e(w)}</p>' for w in report.warnings)
     notes = []
     for row in report.rows[::max(1, len(report.methods))]:
@@ -233,11 +276,12 @@ def render_html(report: ComparisonReport) -> str:
         "<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
         f"<title>bgsub compare: {_e(report.input)}</title><style>{_STYLE}</style></head><body>",
         f"<h1>bgsub compare: {_e(report.input)}</h1>",
-        f'<p>methods: {_e(", ".join(report.methods))}</p>',
-        f'<p class="note">settings: {_e(settings)}</p>', f'<p class="note">{_e(TIMING_NOTE)}</p>',
-        warnings, "<h2>Charts</h2>", *(f"<div>{svg}</div>" for svg in _charts(report)),
+        f'<p>methods: {_e(", ".join(report.methods))}</p>', warnings,
+        _answer(report), "<h2>Charts</h2>", *(f"<div>{svg}</div>" for svg in _charts(report)),
         "<h2>Figures</h2>", _table(report),
         f'<ul class="note">{"".join(notes)}</ul>' if notes else "",
+        f'<p class="note">{_e(TIMING_NOTE)}</p>',
+        "<h2>Settings</h2>", settings_table(report.settings),
         "<h2>Frames</h2>",
         *(_frames(shown, report.settings.get("video_codec")) for shown in report.frames),
         "</body></html>",

@@ -268,7 +268,7 @@ def test_eval_method_scores_one_method_of_a_compare_report(tmp_path, case, capsy
     report = tmp_path / "cmp"
     report.mkdir()
     (report / "report.txt").write_text("")
-    pred.rename(report / "mine")  # the layout of `bgsub compare --masks png`
+    pred.rename(report / "mine")  # the layout of `bgsub compare --mask-format png`
     (report / "other.mkv").write_bytes(b"")  # listed by its name only
     err = bgsub_error(["eval", report, seq])
     assert "it holds the mask sets mine/, other.mkv" in err and "--method mine" in err

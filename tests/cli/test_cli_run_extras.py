@@ -174,7 +174,7 @@ def test_config_file_sets_parameters_and_param_overrides_it(clip, tmp_path):
 
 @pytest.mark.parametrize("text, key, says", [
     ("count = \n", None, "not valid TOML"),
-    ("cuont = 2\n", "'cuont'", "unknown key"),
+    ("cuont = 2\n", "'cuont'", "unknown parameter"),
     ("rate = 2.5\n", "'rate'", "at most"),
     ("flag = [1]\n", "'flag'", "an array"),
     ("count = \"many\"\n", "'count'", "integer"),

@@ -61,7 +61,8 @@ def test_a_key_without_method_goes_to_every_method_that_has_it():
 
 
 def test_a_key_no_method_has_is_refused():
-    with pytest.raises(InputError, match="none of the methods .* has a parameter 'histry'"):
+    with pytest.raises(InputError, match="none of the methods .* has a parameter 'histry'; "
+                                         "did you mean 'history'"):
         parse_method_params(["histry=30"], ["mog2", "knn"])
 
 

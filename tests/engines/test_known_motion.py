@@ -139,7 +139,7 @@ def test_bad_motion_files_are_refused(tmp_path):
 
 
 def test_baselines_take_no_known_motion():
-    with pytest.raises(InputError, match="no parameter 'known_motion'"):
+    with pytest.raises(InputError, match="unknown parameter 'known_motion'"):
         create_engine("mog2", known_motion=_pan())
 
 

@@ -85,7 +85,7 @@ def test_clip_shape_and_fallback_for_tiny_sizes() -> None:
     (["bench", "--size", "64by48"], "--size"),
     (["bench", "--methods", "nosuch"], "unknown method"),
     (["bench", "--methods", "framediff", "--max-frames", "0"], "at least 1"),
-    (["bench", "--methods", "framediff", "--param", "framediff.nosuch=1"], "no parameter"),
+    (["bench", "--methods", "framediff", "--param", "framediff.nosuch=1"], "unknown parameter"),
 ])
 def test_bad_options_exit_2(capsys, argv, message) -> None:
     assert main(argv) == 2

@@ -8,7 +8,7 @@ import shutil
 import subprocess
 from html.parser import HTMLParser
 from pathlib import Path
-from typing import List, Optional, Tuple
+from typing import Dict, List, Optional, Tuple
 
 import cv2
 import numpy as np
@@ -29,12 +29,15 @@ METHODS = ["framediff", "mog2"]
 
 
 class Page(HTMLParser):
-    """What a test asks of the page: table rows (cells' text), svg elements, images (src, alt),
-    videos (src) and any address other than a data: URI that the page names."""
+    """What a test asks of the page: table rows (cells' text) by the table's class (``rows``:
+    the metrics table's), the classes of each row, svg elements, images (src, alt), videos (src)
+    and any address other than a data: URI that the page names."""
 
     def __init__(self, text: str) -> None:
         super().__init__()
-        self.rows: List[List[str]] = []
+        self.tables: Dict[str, List[List[str]]] = {}
+        self.row_classes: Dict[str, List[str]] = {}
+        self._table = ""
         self.svgs = 0
         self.images: List[Tuple[str, str]] = []
         self.videos: List[str] = []
@@ -46,10 +49,13 @@ class Page(HTMLParser):
 
     def handle_starttag(self, tag: str, attrs) -> None:
         attrs = dict(attrs)
-        if tag == "tbody":
+        if tag == "table":
+            self._table = attrs.get("class", "")
+        elif tag == "tbody":
             self._in_tbody = True
         elif tag == "tr" and self._in_tbody:
-            self.rows.append([])
+            self.tables.setdefault(self._table, []).append([])
+            self.row_classes.setdefault(self._table, []).append(attrs.get("class", ""))
         elif tag == "td" and self._in_tbody:
             self._cell = []
         elif tag == "svg":
@@ -66,8 +72,12 @@ class Page(HTMLParser):
         if tag == "tbody":
             self._in_tbody = False
         elif tag == "td" and self._cell is not None:
-            self.rows[-1].append("".join(self._cell))
+            self.tables[self._table][-1].append("".join(self._cell))
             self._cell = None
+
+    @property
+    def rows(self) -> List[List[str]]:
+        return self.tables.get("metrics", [])
 
     def handle_data(self, data: str) -> None:
         if self._cell is not None:

@@ -144,6 +144,7 @@ class GrbmFrontEnd(MotionFrontEnd):
                    "motion + compensated background model (the paper's method)")
     config_type = GrbmConfig
     stage_defaults = GRBM_TUNED
+    common_params = ("model", "stride", "max_motion", *MotionFrontEnd.common_params)
 
     def __init__(self, config: Optional[GrbmConfig] = None, *,
                  flow: Optional[FlowConfig] = None) -> None:

@@ -53,6 +53,7 @@ class LucasKanadeFrontEnd(MotionFrontEnd):
     description = ("moving camera: Lucas-Kanade corner tracks + RANSAC camera motion + "
                    "compensated background model (classical baseline of grbm)")
     config_type = LucasKanadeConfig
+    common_params = ("max_corners", *MotionFrontEnd.common_params)
 
     def frame_data(self, gray: np.ndarray) -> LKFrame:
         return LKFrame(gray)

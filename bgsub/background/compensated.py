@@ -22,14 +22,15 @@ over background the model has seen is never healed this way, whatever its colour
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Optional
+from typing import Optional
 
 import cv2
 import numpy as np
 
 from bgsub.background.clamp import at_least, at_most
+from bgsub._util import fast_median, through_bgra, warp_image  # noqa: F401  (re-exported)
 from bgsub.errors import InputError, describe_shape
-from bgsub.motion.global_motion import fast_median, is_affine, is_identity
+from bgsub.motion.global_motion import is_identity
 from bgsub.settings import check_settings, setting
 
 __all__ = ["BackgroundConfig", "CompensatedBackground", "through_bgra", "warp_image"]
@@ -409,35 +410,3 @@ def _per_channel(a: np.ndarray, c: int) -> np.ndarray:
     :meth:`CompensatedBackground.update`'s two multiplications ~3x slower than the copy costs
     (same values either way)."""
     return a[:, :, None] if c == 1 else cv2.merge([a] * c)
-
-
-def through_bgra(resample: Callable[[np.ndarray], np.ndarray],
-                 img: np.ndarray) -> np.ndarray:
-    """``resample(img)`` for an OpenCV resampling (warp, remap) that treats channels alike: a
-    3-channel ``img`` goes through BGRA, since OpenCV's 4-channel bilinear path is about twice
-    as fast as its 3-channel one and gives the same values per channel."""
-    if img.ndim == 3 and img.shape[2] == 3:
-        return cv2.cvtColor(resample(cv2.cvtColor(img, cv2.COLOR_BGR2BGRA)), cv2.COLOR_BGRA2BGR)
-    return resample(img)
-
-
-def warp_image(img: np.ndarray, matrix: np.ndarray, size: tuple, flags: int,
-               border: int) -> np.ndarray:
-    """``img`` ((H, W) or (H, W, C) float32 or uint8) warped by the (3, 3) ``matrix`` to
-    ``size`` (W, H) with OpenCV's interpolation ``flags`` and ``border`` mode; same dtype and
-    channel count."""
-    return through_bgra(lambda each: _warp(each, matrix, size, flags, border), img)
-
-
-def _warp(img: np.ndarray, matrix: np.ndarray, size: tuple, flags: int,
-          border: int) -> np.ndarray:
-    """:func:`warp_image` in OpenCV's own channel handling."""
-    m = np.asarray(matrix, np.float64)
-    if is_affine(m):
-        # An affine motion (translation, similarity, affine): warpAffine is the same map, cheaper.
-        out = cv2.warpAffine(img, m[:2] / m[2, 2], size, flags=flags, borderMode=border,
-                             borderValue=0.0)
-    else:
-        out = cv2.warpPerspective(img, m, size, flags=flags, borderMode=border, borderValue=0.0)
-    return _channels(out, img.shape[2] if img.ndim == 3 else 1) if img.ndim == 3 else out
-

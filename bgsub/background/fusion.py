@@ -31,7 +31,8 @@ from bgsub.background.evidence import (cell_index, cells_to_pixels, frame_eviden
                                        residual_field)
 from bgsub.background.morphology import kernel
 from bgsub.errors import InputError
-from bgsub.motion.global_motion import apply_homography, fast_median
+from bgsub._util import fast_median
+from bgsub.motion.global_motion import apply_homography
 from bgsub.settings import check_settings, setting
 
 __all__ = ["FusionConfig", "Fusion", "flow_violation_map", "fuse_masks", "clean_mask",

@@ -14,11 +14,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Optional
+from typing import Optional
 
 import cv2
 import numpy as np
 
+from bgsub._util import fast_median, is_affine  # noqa: F401  (re-exported)
 from bgsub.errors import InputError
 from bgsub.settings import check_settings, setting
 
@@ -134,12 +135,6 @@ def is_identity(matrix: np.ndarray, *, atol: float = 1e-8, rtol: float = 1e-5) -
     allclose's overhead (called several times per frame)."""
     d = np.abs(np.asarray(matrix, np.float64) - _EYE)
     return bool((d <= atol + rtol * _EYE).all())
-
-
-def is_affine(matrix: np.ndarray) -> bool:
-    """The ``(3, 3)`` homography's last row is ``(0, 0, c)``: an affine map (``warpAffine``)."""
-    m = np.asarray(matrix)
-    return abs(float(m[2, 0])) <= 1e-12 and abs(float(m[2, 1])) <= 1e-12 and float(m[2, 2]) != 0.0
 
 
 def corner_distances(a: np.ndarray, b: np.ndarray, *, width: int, height: int) -> np.ndarray:
@@ -452,22 +447,6 @@ def _within(dx: np.ndarray, dy: np.ndarray, threshold: float) -> np.ndarray:
     if unsure.any():
         near[unsure] = np.hypot(dx[unsure], dy[unsure]) < threshold
     return near
-
-
-def fast_median(a: np.ndarray) -> Any:
-    """``np.median(a, axis=0)`` of a finite ``(K,)`` or ``(K, C)`` float array (K >= 1),
-    computed as numpy computes it (the same partition, the mean of the middle one or two values
-    in ``a``'s precision) without its per-call overhead, which on a frame's few hundred or few
-    thousand values is most of a median's cost: a scalar of ``a``'s dtype for ``(K,)``, a
-    ``(C,)`` array for ``(K, C)``."""
-    k = len(a)
-    half = k // 2
-    kth = [half - 1, half, -1] if k % 2 == 0 else [(k - 1) // 2, -1]
-    part = np.partition(a, kth, axis=0)
-    # The sum starts from 0.0, as numpy's mean does (so a median of -0.0 is 0.0).
-    if k % 2:
-        return (0.0 + part[half]) / 1.0
-    return (0.0 + part[half - 1] + part[half]) / 2.0
 
 
 @dataclass(frozen=True)

@@ -128,6 +128,11 @@ class CompensatedBackground:
         self.seen = np.zeros(f.shape[:2], np.float32)
         self._diff = None
 
+    def restart(self, frame: np.ndarray) -> None:
+        """Start over from ``frame`` and learn it once (a new shot; the engine's restart)."""
+        self.reset(frame)
+        self.update(frame)
+
     def warp(self, matrix: np.ndarray, *, sharp: bool = False) -> None:
         """Move the model into the current frame's coordinates.
 

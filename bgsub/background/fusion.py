@@ -42,16 +42,24 @@ __all__ = ["FusionConfig", "Fusion", "flow_violation_map", "fuse_masks", "clean_
 @dataclass(frozen=True)
 class FusionConfig:
     """Settings of the foreground decision (:class:`Fusion`); each field's meaning, default and
-    bounds are in its :func:`~bgsub.settings.setting`."""
+    bounds are in its :func:`~bgsub.settings.setting`.
 
-    flow_boost: float = setting(0.8, "where local motion violates the camera's, the background "
+    The defaults are the ``grbm`` engine's. Its flow-violation evidence is dense but noisier
+    than tracked corners: weakly textured object patches read the camera's motion and would
+    damp true objects, so it leans on violations to boost rather than to damp. How noisy its
+    vectors are depends on the footage (sharp BMS-26 against blurred CDnet traffic), so a
+    violation is a disagreement of ``violation_threshold`` px or ``violation_noise`` robust
+    standard deviations of the frame's disagreements, whichever is larger (docs/BENCHMARKS.md).
+    """
+
+    flow_boost: float = setting(1.5, "where local motion violates the camera's, the background "
                                      "difference is multiplied by up to 1 + this", low=0)
-    flow_damp: float = setting(0.8, "where local motion agrees with the camera's, it is "
+    flow_damp: float = setting(0.2, "where local motion agrees with the camera's, it is "
                                     "multiplied by down to 1 - this (0 and flow_boost 0 = "
                                     "background model only)", low=0, high=1)
-    violation_threshold: float = setting(1.5, "disagreement with the camera motion (px) that "
+    violation_threshold: float = setting(0.75, "disagreement with the camera motion (px) that "
                                               "counts as a violation", low=0)
-    violation_noise: float = setting(0.0, "... or this many robust standard deviations of the "
+    violation_noise: float = setting(4.0, "... or this many robust standard deviations of the "
                                           "local vectors' disagreement, if more (0 = fixed "
                                           "threshold)", low=0)
     image_cue: float = setting(1.0, "weight of the frames' own evidence: the previous frame "
@@ -101,41 +109,24 @@ class FusionConfig:
 
 
 class Fusion:
-    """The foreground decision of one frame, in three calls: :meth:`violation` (the motion
-    evidence), :meth:`mask` (fused with the background score, cleaned) and
-    :meth:`learn_slowly` (where the background model should learn at its foreground rate)."""
+    """The foreground decision of one frame: the motion evidence (:meth:`vector_evidence` and
+    :meth:`image_evidence`, which the engine makes in two threads, then :meth:`combined`),
+    :meth:`mask` (fused with the background score, cleaned), :meth:`close_by_edges`,
+    :meth:`confirmed` and :meth:`learn_slowly` (where the background model should learn at its
+    foreground rate)."""
 
     def __init__(self, config: Optional[FusionConfig] = None) -> None:
         self.config = config or FusionConfig()
 
-    def violation(self, points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
-                  matrix: np.ndarray, prev: np.ndarray, cur: np.ndarray, *,
-                  fit_weights: Optional[np.ndarray] = None,
-                  noise_scale: Optional[float] = None) -> Optional[np.ndarray]:
-        """``(h, w) float32`` in [0, 1]: the evidence that a pixel moves otherwise than the
-        camera (``matrix``, (3, 3)), the larger of two:
-
-        * the :func:`flow_violation_map` of the ``(N, 2)`` vectors ``points`` / ``disp`` with
-          ``(N,)`` ``weights`` (0.5 where no vector reports, below it where they agree);
-        * the frames' own :func:`~bgsub.background.evidence.motion_evidence_map` of ``prev`` and
-          ``cur`` ((h, w) or (h, w, 3) uint8: colour differences count), the local vectors
-          (weighted by ``fit_weights``, default ``weights``) as one alternative motion.
-
-        ``noise_scale`` replaces ``violation_noise`` (0: the vectors are one consistent motion,
-        whose spread must not raise the threshold). None when the fusion ignores motion
-        evidence. The same as :meth:`combined` of :meth:`vector_evidence` and
-        :meth:`image_evidence`, which the engine runs in two threads."""
-        image = self.image_evidence(points, disp, weights if fit_weights is None else fit_weights,
-                                    matrix, prev, cur)
-        vectors = self.vector_evidence(points, disp, weights, matrix, cur.shape[:2],
-                                       noise_scale=noise_scale)
-        return self.combined(vectors, None if image is None else image[0])
-
     def vector_evidence(self, points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
                         matrix: np.ndarray, shape: tuple, *,
                         noise_scale: Optional[float] = None) -> Optional[np.ndarray]:
-        """The :func:`flow_violation_map` part of :meth:`violation`, ``(h, w) float32`` for a
-        frame of ``shape`` (h, w); None when the fusion ignores motion evidence."""
+        """The vectors' evidence that a pixel moves otherwise than the camera (``matrix``, (3,
+        3)): the :func:`flow_violation_map` of the ``(N, 2)`` ``points`` / ``disp`` with ``(N,)``
+        ``weights``, ``(h, w) float32`` in [0, 1] for a frame of ``shape`` (h, w), 0.5 where no
+        vector reports. ``noise_scale`` replaces ``violation_noise`` (0: the vectors are one
+        consistent motion, whose spread must not raise the threshold). None when the fusion
+        ignores motion evidence."""
         c = self.config
         if c.flow_boost == 0.0 and c.flow_damp == 0.0:
             return None
@@ -146,10 +137,12 @@ class Fusion:
     def image_evidence(self, points: np.ndarray, disp: np.ndarray, fit_weights: np.ndarray,
                        matrix: np.ndarray, prev: np.ndarray,
                        cur: np.ndarray) -> Optional[tuple]:
-        """``(against, along)``, (h, w) float32 each: the frames' own part of :meth:`violation`
-        scaled by ``image_cue``, and their :func:`~bgsub.background.evidence.camera_evidence_map`
-        (for :meth:`confirmed`); None when that cue is off or the fusion ignores motion
-        evidence."""
+        """``(against, along)``, (h, w) float32 each: the frames' own evidence of motion against
+        the camera (:func:`~bgsub.background.evidence.motion_evidence_map` of ``prev`` and
+        ``cur``, (h, w) or (h, w, 3) uint8, the local vectors weighted by ``fit_weights`` as one
+        alternative motion) scaled by ``image_cue``, and their
+        :func:`~bgsub.background.evidence.camera_evidence_map` (for :meth:`confirmed`); None
+        when that cue is off or the fusion ignores motion evidence."""
         c = self.config
         if c.image_cue == 0 or (c.flow_boost == 0.0 and c.flow_damp == 0.0):
             return None
@@ -163,14 +156,16 @@ class Fusion:
     @staticmethod
     def combined(vectors: Optional[np.ndarray],
                  image: Optional[np.ndarray]) -> Optional[np.ndarray]:
-        """:meth:`violation` from its two parts: their maximum, in place in ``vectors``."""
+        """The violation map, ``(h, w) float32`` in [0, 1]: the larger of the
+        :meth:`vector_evidence` and the ``against`` part of :meth:`image_evidence`, in place in
+        ``vectors`` (``vectors`` itself when either is None)."""
         if vectors is None or image is None:
             return vectors
         return np.maximum(vectors, image, out=vectors)
 
     def mask(self, score: np.ndarray, violation: Optional[np.ndarray]) -> np.ndarray:
         """The ``(h, w) uint8`` 0/255 mask of the background ``score`` ((h, w) float32) and the
-        :meth:`violation` map: :func:`fuse_masks` with this stage's settings."""
+        violation map (:meth:`combined`): :func:`fuse_masks` with this stage's settings."""
         c = self.config
         return fuse_masks(score, violation, flow_boost=c.flow_boost, flow_damp=c.flow_damp,
                           threshold=c.threshold, min_area=c.min_area, close=c.close,

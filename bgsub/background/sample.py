@@ -19,9 +19,10 @@ class SampleBackground:
     within ``radius`` gray levels (the largest channel difference). Water, foam and leaves take
     many values at one pixel: a mean and a variance describe them badly, a set of samples well.
     The model is never warped, so it serves only while the camera is still (the engines decide
-    when: :class:`bgsub.engines.parts.StillCameraSwitch`). Updates are conservative and random:
-    a background pixel replaces one of its samples with probability ``1 / subsample`` and, as
-    often, one of a neighbour's (ViBe's diffusion, which lets a ghost fade from its border).
+    when: :class:`bgsub.background.still_switch.StillCameraSwitch`). Updates are conservative and
+    random: a background pixel replaces one of its samples with probability ``1 / subsample``
+    and, as often, one of a neighbour's (ViBe's diffusion, which lets a ghost fade from its
+    border).
 
     Usage per frame: :meth:`score` the frame, then :meth:`update` with the decided mask.
     """

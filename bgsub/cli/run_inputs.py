@@ -81,7 +81,7 @@ def check_inputs(params: Dict[str, Any], *, width: int, height: int) -> Dict[str
         region.at((height, width))
         params["roi"] = region
     if params.get("known_motion"):
-        from bgsub.engines.parts import KnownMotion  # (a moving-camera engine's, imported)
+        from bgsub.camera.known import KnownMotion  # (a moving-camera engine's)
 
         params["known_motion"] = KnownMotion.from_value(params["known_motion"])
     return params

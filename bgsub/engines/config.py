@@ -1,9 +1,9 @@
-"""Settings of the moving-camera engine's own stages: the camera motion
-(:class:`CameraConfig`) and the engine around the stages (:class:`EngineConfig`).
+"""Settings of the moving-camera engine around its stages (:class:`EngineConfig`).
 
-With the background model's (:class:`~bgsub.background.compensated.BackgroundConfig`), the
-fusion's (:class:`~bgsub.background.fusion.FusionConfig`) and the front end's settings they make
-an engine's parameters: :func:`engine_params` generates its ``Param`` table from their fields,
+With the camera stage's (:class:`~bgsub.camera.config.CameraConfig`), the background model's
+(:class:`~bgsub.background.compensated.BackgroundConfig`), the fusion's
+(:class:`~bgsub.background.fusion.FusionConfig`) and the front end's settings they make an
+engine's parameters: :func:`engine_params` generates its ``Param`` table from their fields,
 :func:`stage_configs` builds them back from parameter values.
 """
 
@@ -15,9 +15,9 @@ from typing import Any, Dict, Mapping
 
 from bgsub.background.compensated import BackgroundConfig
 from bgsub.background.fusion import FusionConfig
+from bgsub.camera.config import CameraConfig
 from bgsub.engines.base import LEARNING_RATE, Param
 from bgsub.errors import InputError
-from bgsub.motion.global_motion import AUTO, FIT_MODELS, MOTION_MODEL_HELP
 from bgsub.settings import check_settings, config_params, setting
 
 __all__ = ["MIN_WORK_WIDTH", "CameraConfig", "EngineConfig", "STAGES", "engine_params",
@@ -26,30 +26,6 @@ __all__ = ["MIN_WORK_WIDTH", "CameraConfig", "EngineConfig", "STAGES", "engine_p
 # The narrowest working frame: a few 13x13 patches across, so a motion can be read at all.
 # Resizing to ``work_width`` never makes the short side smaller than this either.
 MIN_WORK_WIDTH = 32
-
-
-@dataclass(frozen=True)
-class CameraConfig:
-    """The engine's camera-motion stage: the RANSAC fit to the front end's vectors (as
-    :class:`bgsub.motion.global_motion.CameraMotionConfig`), which fits it refuses and which
-    motion it holds back."""
-
-    motion_model: str = setting(AUTO, MOTION_MODEL_HELP, choices=FIT_MODELS)
-    ransac_threshold: float = setting(1.5, "RANSAC inlier distance in working-size pixels",
-                                      above=0)
-    min_extent: float = setting(0.33, "a camera motion must be seen across at least this "
-                                      "fraction of the frame's width or height; one seen only "
-                                      "on a smaller region (a textured object over a blank "
-                                      "background) is taken as the object's, and the camera as "
-                                      "still (0 = off)", low=0, high=1)
-    still_below: float = setting(0.25, "camera motion that moves no frame corner by more than "
-                                       "this (working px) is held back and added to the next "
-                                       "frame's: a still camera's sub-pixel reading noise "
-                                       "would resample (blur) the model every frame (0 = warp "
-                                       "every frame)", low=0)
-
-    def __post_init__(self) -> None:
-        check_settings(self)
 
 
 @dataclass(frozen=True)

@@ -36,27 +36,32 @@ return an empty mask (or, for a scene cut, restart the model) and say why in ``l
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple, Optional, Type
+from dataclasses import dataclass
+from typing import Any, Optional, Type
 
 import cv2
 import numpy as np
 
 from bgsub.background.compensated import BackgroundConfig, CompensatedBackground
+from bgsub.background.exposure import match_exposure, same_exposure
 from bgsub.background.fusion import Fusion, FusionConfig
 from bgsub.background.guided import guided_mask
 from bgsub.background.object_colour import ObjectColours
+from bgsub.background.persistence import BlobPersistence
+from bgsub.background.scene_cut import SceneCut
+from bgsub.background.still_switch import NoStillSwitch, StillCameraSwitch
+from bgsub.camera import (KNOWN_MOTION_HELP, CameraConfig, CameraDecision, CameraStage,
+                          KnownMotion, work_scale)
 from bgsub.engines.base import (Engine, Param, check_fgmask, check_frame, check_learning_rate,
                                 opencv_keywords, register_engine)
-from bgsub.engines.config import (MIN_WORK_WIDTH, CameraConfig, EngineConfig,
-                                  engine_params, stage_configs)
-from bgsub.engines.frontend import NO_MOTION, CameraFit, MotionFrontEnd, MotionResult
-from bgsub.engines.parts import (KNOWN_MOTION_HELP, BlobPersistence, FrozenModelRegistration,
-                                 KnownMotion, MotionHoldBack, SceneCut, SmallRegionRule,
-                                 StillCameraSwitch, match_exposure, work_scale)
+from bgsub.engines.config import MIN_WORK_WIDTH, EngineConfig, engine_params, stage_configs
+from bgsub.engines.frontend import MotionFrontEnd
+from bgsub.engines.roi import WHOLE_FRAME
 from bgsub.engines.threads import SecondThread, limited_threads
 from bgsub.errors import InputError
 from bgsub.io.flowio import add_colour_wheel, draw_flow_arrows
 from bgsub.motion.global_motion import apply_homography
+from bgsub.motion.result import NO_MOTION, MotionResult
 
 __all__ = ["MovingCameraEngine", "register_frontend", "work_size", "draw_debug", "SCENE_CUT"]
 
@@ -101,15 +106,42 @@ def _to_input(img: np.ndarray, in_shape: tuple, *, binary: bool = False) -> np.n
     return up
 
 
-class _Update(NamedTuple):
-    """A frame's background update, deferred to the next frame (where it runs alongside the
-    motion front end)."""
+@dataclass
+class Previous:
+    """What the engine keeps of the frames before the current one: the last frame it took (the
+    first of the next pair) and what it saw of the last frame it was given."""
+
+    data: Any = None  # the last frame taken, as the front end keeps it (None: no frame yet)
+    gray: Optional[np.ndarray] = None  # ... its (h, w) uint8 gray image
+    work: Optional[np.ndarray] = None  # ... and its working-size frame as the stages saw it
+    result: Optional[MotionResult] = None  # the motion measured for the last frame given
+    applied: Optional[np.ndarray] = None  # (3, 3): what it warped the model by
+    frame: Optional[np.ndarray] = None  # the last frame given, at the working size
+    mask: Optional[np.ndarray] = None  # ... and its (h, w) uint8 0/255 mask (working size)
+
+
+@dataclass
+class Comparison:
+    """The compare stage's output: the warped model's view of the frame and the motion
+    evidence."""
+
+    score: np.ndarray  # (h, w) float32: the background difference (above 1 = differs)
+    violation: Optional[np.ndarray]  # (h, w) float32 in [0, 1]: motion against the camera's
+    along: Optional[np.ndarray]  # (h, w) float32: the frames' evidence of the camera's motion
+    exposed: np.ndarray  # the frame at the compensated model's exposure, (h, w[, 3]) uint8
+    gain: float  # what the frame was divided by to get there
+
+
+@dataclass
+class Lesson:
+    """A frame's background update, deferred to the next frame (where it runs in the second
+    thread, alongside the motion front end)."""
 
     exposed: np.ndarray  # the frame at the compensated model's exposure (h, w[, 3]) uint8
-    gain: float  # what the frame was divided by to get there
+    gain: float
     work: np.ndarray  # the frame as it came, for the still-camera model
-    mask: np.ndarray  # (h, w) uint8 0/255: the frame's mask, copied (apply may return it) ...
-    violation: Optional[np.ndarray]  # ... and motion evidence, for Fusion.learn_slowly
+    mask: np.ndarray  # (h, w) uint8 0/255: the frame's mask, copied (apply may return it)
+    violation: Optional[np.ndarray]  # the motion evidence, for Fusion.learn_slowly
     confirmed: Optional[np.ndarray]  # (h, w) bool: Fusion.confirmed
     rate: float  # the caller's learning rate
 
@@ -125,19 +157,21 @@ class MovingCameraEngine(Engine):
         engine = MovingCameraEngine(LucasKanadeFrontEnd(LucasKanadeConfig(max_corners=800)),
                                     fusion=FusionConfig(min_area=50))
 
+    A frame passes the stages motion (the front end), camera (:attr:`camera`), compare (the
+    background model :attr:`bg` and the motion evidence of :attr:`fusion`), decide (scene cut,
+    still-camera switch, fusion, persistence, object colours, edge holes), learn (deferred to
+    the next frame) and place (the mask on the frame's edges, at the input's size).
+
     Attributes
     ----------
     last_status : str
         ``"ok"`` or ``"fallback: <reason>"`` for the last frame.
     frontend, config, camera, bg, fusion
-        The front end, the engine's and the camera stage's settings, the compensated
-        background model and the fusion stage.
-    small_region, hold_back, registration, scene_cut, persistence, object_colours, still_switch,
-    known_motion
-        The special behaviours (:mod:`bgsub.engines.parts`; ``still_switch`` None when
-        ``still_model`` is 0, ``known_motion`` None when the camera motion is fitted). The
-        region of interest (``roi``, :mod:`bgsub.engines.roi`) also leaves the vectors outside
-        it out of the fit.
+        The front end, the engine's settings, the camera stage
+        (:class:`~bgsub.camera.CameraStage`), the compensated background model and the fusion.
+    scene_cut, still_switch, exposure, persistence, object_colours
+        The foreground policies (:mod:`bgsub.background`; ``still_switch`` does nothing when
+        ``still_model`` is 0). ``known_motion`` is the camera stage's given motion.
     """
 
     def __init__(self, frontend: MotionFrontEnd, *, engine: Optional[EngineConfig] = None,
@@ -148,35 +182,22 @@ class MovingCameraEngine(Engine):
         defaults = stage_configs({}, frontend.stage_defaults)
         self.frontend = frontend
         self.name = frontend.name or "moving-camera"
-        self.config = engine or defaults[EngineConfig]
-        self.camera = camera or defaults[CameraConfig]
+        self.config = c = engine or defaults[EngineConfig]
+        self.camera = CameraStage(camera or defaults[CameraConfig], known_motion)
         self.bg = CompensatedBackground(background or defaults[BackgroundConfig])
         self.fusion = Fusion(fusion or defaults[FusionConfig])
-        c, cam = self.config, self.camera
-        self.fit = CameraFit(motion_model=cam.motion_model, threshold=cam.ransac_threshold)
-        self.small_region = SmallRegionRule(cam.min_extent)
-        self.hold_back = MotionHoldBack(cam.still_below)
-        self.registration = FrozenModelRegistration(cam.motion_model)
+        self.exposure = match_exposure if c.match_exposure else same_exposure
         self.scene_cut = SceneCut(c.scene_cut, c.cut_support)
+        self.still_switch = (StillCameraSwitch(still_model=c.still_model, still_snr=c.still_snr,
+                                               window=c.still_window, still_versus=c.still_versus)
+                             if c.still_model > 0 else NoStillSwitch())
         self.persistence = BlobPersistence(self.fusion.config.persist)
         self.object_colours = ObjectColours(radius=self.fusion.config.grow_radius,
                                             above=self.fusion.config.grow_above)
-        self.still_switch = (StillCameraSwitch(still_model=c.still_model, still_snr=c.still_snr,
-                                               window=c.still_window,
-                                               still_versus=c.still_versus)
-                             if c.still_model > 0 else None)
         self.thread = SecondThread(overlap=c.overlap, name=self.name)
-        self.known_motion = known_motion
         self.last_status = "ok"
-        self._prev: Any = None  # the previous frame as the front end keeps it
-        self._prev_gray: Optional[np.ndarray] = None
-        self._prev_work: Optional[np.ndarray] = None
-        self._prev_motion: Optional[np.ndarray] = None  # last good fit, (3, 3)
-        self._pending: Optional[_Update] = None
-        self._last: Optional[MotionResult] = None
-        self._last_matrix: Optional[np.ndarray] = None  # what the last frame applied
-        self._last_frame: Optional[np.ndarray] = None
-        self._last_mask: Optional[np.ndarray] = None
+        self.previous = Previous()
+        self._lesson: Optional[Lesson] = None
         self._in_shape: Optional[tuple] = None  # the input frames' (H, W) or (H, W, 3)
 
     # ------------------------------------------------------------------ Engine API
@@ -188,8 +209,7 @@ class MovingCameraEngine(Engine):
         rate = check_learning_rate(learning_rate, default=self.config.learning_rate)
         check_fgmask(fgmask, image.shape[:2])
         self._in_shape = image.shape
-        if self.known_motion is not None:
-            self.known_motion.next_frame()
+        self.camera.known.next_frame()
         with limited_threads(self.config.threads):
             work = _to_work(image, self.config.work_width)
             if work is image:
@@ -200,24 +220,12 @@ class MovingCameraEngine(Engine):
             gray = (smoothed if smoothed.ndim == 2
                     else cv2.cvtColor(smoothed, cv2.COLOR_BGR2GRAY))
             mask = self._step(smoothed, gray, rate)
-            out = self._final_mask(mask, work, image)
-        self._last_frame, self._last_mask = work, mask
+            out = self._place(mask, work, image)
+        self.previous.frame, self.previous.mask = work, mask
         if fgmask is not None:
             fgmask[...] = out
             return fgmask
         return out
-
-    def _final_mask(self, mask: np.ndarray, work: np.ndarray, image: np.ndarray) -> np.ndarray:
-        """The fused working-size ``mask`` as returned: placed on the frame's colour edges at
-        the size of the input ``image`` (:func:`~bgsub.background.guided.guided_mask`, with
-        ``work``, the frame at the working size), or with ``edge_radius`` 0 as it is, scaled up
-        bilinearly. ``(H, W) uint8`` 0/255."""
-        c = self.config
-        if c.edge_radius == 0:
-            return _to_input(mask, image.shape, binary=True)
-        full = work if work.shape == image.shape else image
-        return guided_mask(mask, work, full, radius=c.edge_radius, eps=c.edge_eps,
-                           step=c.edge_step)
 
     def close(self) -> None:
         """Stop the engine's second thread (``overlap=1``) now rather than when the engine is
@@ -227,163 +235,169 @@ class MovingCameraEngine(Engine):
     # ------------------------------------------------------------------ one frame
 
     def _step(self, work: np.ndarray, gray: np.ndarray, rate: float) -> np.ndarray:
-        """One frame at the working size, the stages of the module docstring: ``work`` is the
-        frame (BGR or gray uint8, blurred by ``smooth``), ``gray`` its (h, w) uint8 gray image,
-        ``rate`` the checked learning rate. Returns the (h, w) uint8 0/255 mask."""
-        self._last = self._last_matrix = None
+        """One frame at the working size through the stages: ``work`` is the frame (BGR or
+        gray uint8, blurred by ``smooth``), ``gray`` its (h, w) uint8 gray image, ``rate`` the
+        checked learning rate (0: a frozen model). Returns the (h, w) uint8 0/255 mask."""
+        prev = self.previous
+        prev.result = prev.applied = None
         empty = np.zeros(gray.shape, np.uint8)
         if float(cv2.meanStdDev(gray)[1][0, 0]) < self.config.min_contrast:
             # Blank or textureless frame: no motion can be measured; keep the model as it is.
-            self._finish_update()
+            self._learn()
             self.last_status = "fallback: blank or textureless frame"
             return empty
-        if self._prev is None:
+        if prev.data is None:
             self.frontend.check_size(gray)
-            self._restart(work, gray)
-            self._last_matrix = np.eye(3)  # no previous frame
+            self._restart(work, gray, self.frontend.frame_data(gray))
+            prev.applied = np.eye(3)  # no previous frame
             self.last_status = "ok"
             return empty
+        frozen = rate == 0.0
         cur = self.frontend.frame_data(gray)
-        result, refused = self.small_region.check(self._measure(cur, gray), gray.shape)
-        self._last = result
-        matrix, status = self._camera_matrix(result, refused)
-        applied = self._to_apply(matrix, gray, register=rate == 0.0 and result.motion.ok)
-        score, violation, along, exposed = self._compare(work, gray, result, matrix, applied,
-                                                         rate, fixed_threshold=refused)
-        unseen = self.bg.age < self.bg.config.min_age
-        if self.roi is not None:  # (what changes outside the region is no new shot)
-            unseen = unseen | ~self.roi.at(gray.shape)
-        if self.scene_cut.is_cut(score, unseen, result):
+        seen = self.camera.decide(self._motion(cur, gray), gray, self.bg, frozen=frozen)
+        prev.result = seen.result
+        compared = self._compare(work, seen, frozen=frozen)
+        young = self._region.unwatched(self.bg.age < self.bg.config.min_age)
+        if self.scene_cut.is_cut(compared.score, young, seen.result):
             self._restart(work, gray, cur)
             self.last_status = SCENE_CUT
             return empty
-        self._last_matrix = applied
-        if self.still_switch is not None:
-            still_score = self.still_switch.judge(work, result, compensated=self.bg,
-                                                 compensated_score=score)
-            score = score if still_score is None else still_score
-        mask = self.persistence.filter(self.fusion.mask(score, violation), matrix)
-        mask = self.object_colours.grow(mask, work)
-        mask = self.fusion.close_by_edges(mask, gray)
-        # learn_slowly's closing is left to the update, which the second thread runs.
-        self._pending = _Update(*exposed, work, mask.copy(), violation,
-                                self.fusion.confirmed(mask, violation, along), rate)
-        self._prev, self._prev_gray = cur, gray
-        self._prev_work = work
-        if result.motion.ok:
-            self._prev_motion = result.motion.matrix
-        self.last_status = status
+        prev.applied = seen.applied
+        mask = self._decide(work, gray, seen, compared)
+        self._lesson = Lesson(exposed=compared.exposed, gain=compared.gain, work=work,
+                              mask=mask.copy(), violation=compared.violation,
+                              confirmed=self.fusion.confirmed(mask, compared.violation,
+                                                              compared.along), rate=rate)
+        prev.data, prev.gray, prev.work = cur, gray, work
+        self.last_status = seen.status
         return mask
 
-    def _measure(self, cur: Any, gray: np.ndarray) -> MotionResult:
-        """The front end's motion from the previous frame to ``cur``, while the second thread
-        finishes the last frame's update and prepares ``cur`` for the next pair."""
-        fit, prior = self._camera_fit(gray.shape)
-        with self.thread.alongside(self._finish_update, lambda: self.frontend.prepare(cur)):
-            if np.array_equal(gray, self._prev_gray):
+    @property
+    def _region(self) -> Any:
+        """The region of interest, or :data:`~bgsub.engines.roi.WHOLE_FRAME`."""
+        return self.roi or WHOLE_FRAME
+
+    def _motion(self, cur: Any, gray: np.ndarray) -> MotionResult:
+        """The motion stage: the front end's motion from the previous frame to ``cur``, while
+        the second thread applies the last frame's update and prepares ``cur`` for the next
+        pair; over the region of interest's vectors only."""
+        fit, prior = self.camera.fit_for(self._in_shape, gray.shape)
+        with self.thread.alongside(self._learn, lambda: self.frontend.prepare(cur)):
+            if np.array_equal(gray, self.previous.gray):
                 # A repeated frame (a frame-rate conversion's duplicate, a paused stream): the
                 # camera did not move, whatever a noisy reading would say; a frozen model
                 # would otherwise drift by that reading's error.
                 return NO_MOTION
-            result = self.frontend.measure(self._prev, cur, prior=prior, fit=fit)
-        return result if self.roi is None else self.roi.restrict(result, gray.shape)
+            result = self.frontend.measure(self.previous.data, cur, prior=prior,
+                                           fit=self._region.restrict_fit(fit))
+        return self._region.restrict(result, gray.shape)
 
-    def _camera_fit(self, shape: tuple) -> tuple:
-        """``(fit, prior)`` for a frame of working ``shape``: the RANSAC fit and the last good
-        motion, or the known motion as both; over the region of interest's vectors only."""
-        fit, prior = self.fit, self._prev_motion
-        known = self.known_motion and self.known_motion.matrix(self._in_shape, shape)
-        if known is not None:
-            fit, prior = KnownMotion.fit(known, self.camera.ransac_threshold), known
-        return (fit, prior) if self.roi is None else (self.roi.restrict_fit(fit), prior)
-
-    def _camera_matrix(self, result: MotionResult, refused: bool) -> tuple:
-        """``(matrix, status)``: the fit, or for a refused fit the previous frame's motion (the
-        identity when refused for its small region: the camera is taken as still)."""
-        if result.motion.ok:
-            return result.motion.matrix, "ok"
-        status = f"fallback: {result.motion.reason}"
-        if refused or self._prev_motion is None:
-            return np.eye(3), status
-        return self._prev_motion, status
-
-    def _to_apply(self, matrix: np.ndarray, gray: np.ndarray, *, register: bool) -> np.ndarray:
-        """The motion (3, 3) to warp the model by: this frame's ``matrix`` with what earlier
-        frames held back, registered to a frozen model when ``register``."""
-        total = self.hold_back.total(matrix)
-        if register:
-            total = self.registration.register(
-                total, gray, self.bg, small=self.hold_back.below(total, gray.shape))
-        return self.hold_back.release(total, gray.shape)
-
-    def _compare(self, work: np.ndarray, gray: np.ndarray, result: MotionResult,
-                 matrix: np.ndarray, applied: np.ndarray, rate: float, *,
-                 fixed_threshold: bool) -> tuple:
-        """``(score, violation, along, exposed)``: the background model, warped by ``applied``,
-        scores the frame brought to its exposure (``exposed``, the ``(frame, gain)`` of
-        :func:`match_exposure` with ``match_exposure``, else ``(work, 1.0)``) and the vectors
-        of ``result`` give their violation map, while the second thread makes the frames' own
-        evidence (against the camera, and ``along`` it: the camera evidence, or None) from the
-        frames as they came, both against the camera's ``matrix`` (the vectors' with the fixed
-        violation threshold when ``fixed_threshold``: a refused region's vectors are one
-        consistent motion, not noise about the camera's)."""
-        image: list = []
-        prev = self._prev_work
+    def _compare(self, work: np.ndarray, seen: CameraDecision, *, frozen: bool) -> Comparison:
+        """The compare stage: the background model is warped by the camera stage's motion
+        (:meth:`_warp_model`) and scores the frame brought to its exposure, and the vectors
+        give their violation map, while the second thread makes the frames' own evidence
+        (against the camera, and along it) from the frames as they came, both against the
+        camera's motion (the vectors' with the fixed violation threshold for a refused small
+        region: its vectors are one consistent motion, not noise about the camera's)."""
+        res, image = seen.result, []
+        prev = self.previous.work
 
         def evidence() -> None:
-            image.append(self.fusion.image_evidence(result.points, result.disp, result.weights,
-                                                    matrix, prev, work))
+            image.append(self.fusion.image_evidence(res.points, res.disp, res.weights,
+                                                    seen.matrix, prev, work))
 
         # The frames' evidence is the longer job: the vectors' map is made in this thread.
         with self.thread.alongside(evidence):
-            self.bg.warp(applied, sharp=rate == 0.0)
-            if rate == 0.0:
-                self.registration.forget_unseen(self.bg, applied)
-            exposed = match_exposure(work, self.bg) if self.config.match_exposure else (work, 1.0)
-            score = self.bg.score(exposed[0])
+            self._warp_model(seen.applied, frozen=frozen)
+            exposed, gain = self.exposure(work, self.bg)
+            score = self.bg.score(exposed)
             vectors = self.fusion.vector_evidence(
-                result.points, result.disp, result.evidence_weights, matrix, work.shape[:2],
-                noise_scale=0.0 if fixed_threshold else None)
+                res.points, res.disp, res.evidence_weights, seen.matrix, work.shape[:2],
+                noise_scale=0.0 if seen.refused else None)
         against, along = image[0] if image[0] is not None else (None, None)
-        return score, self.fusion.combined(vectors, against), along, exposed
+        return Comparison(score=score, violation=self.fusion.combined(vectors, against),
+                          along=along, exposed=exposed, gain=gain)
 
-    def _finish_update(self) -> None:
-        """Apply the deferred background update of the last frame, if any."""
-        if self._pending is not None:
-            u, self._pending = self._pending, None
+    def _warp_model(self, applied: np.ndarray, *, frozen: bool) -> None:
+        """Warp the background model by ``applied`` (3, 3); a ``frozen`` one is warped sharp,
+        and forgets the pixels the previous frame saw only in part."""
+        self.bg.warp(applied, sharp=frozen)
+        if frozen:
+            self.camera.registration.forget_unseen(self.bg, applied)
+
+    def _decide(self, work: np.ndarray, gray: np.ndarray, seen: CameraDecision,
+                compared: Comparison) -> np.ndarray:
+        """The decide stage: the (h, w) uint8 0/255 mask of the frame, from the compensated
+        model's score (or the still-camera model's, while the camera is still) and the motion
+        evidence, less the blobs new since the last frame, grown over the last objects'
+        colours, with the holes it and the frame's edges enclose filled."""
+        still = self.still_switch.judge(work, seen.result, compensated=self.bg,
+                                        compensated_score=compared.score)
+        score = compared.score if still is None else still
+        mask = self.persistence.filter(self.fusion.mask(score, compared.violation), seen.matrix)
+        mask = self.object_colours.grow(mask, work)
+        # learn_slowly's closing is left to the update, which the second thread runs.
+        return self.fusion.close_by_edges(mask, gray)
+
+    def _learn(self) -> None:
+        """The learn stage: the last frame's deferred background update, if any."""
+        if self._lesson is not None:
+            u, self._lesson = self._lesson, None
             slow = self.fusion.learn_slowly(u.mask, u.violation)
             self.object_colours.learn(u.work, u.mask)
             self.bg.update(u.exposed, slow, u.rate, exposure=u.gain, confirmed=u.confirmed)
-            if self.still_switch is not None:
-                self.still_switch.update(u.work, slow, u.rate)
+            self.still_switch.update(u.work, slow, u.rate)
 
-    def _restart(self, work: np.ndarray, gray: np.ndarray, cur: Any = None) -> None:
-        self._pending = None
-        self.persistence.reset()
-        self.object_colours.reset()
-        self.bg.reset(work)
-        self.bg.update(work)
-        if self.still_switch is not None:
-            self.still_switch.reset(work)
-        self._prev = cur if cur is not None else self.frontend.frame_data(gray)
-        self._prev_gray = gray
-        self._prev_work = work
-        self._prev_motion = None
-        self.hold_back.reset()
+    def _place(self, mask: np.ndarray, work: np.ndarray, image: np.ndarray) -> np.ndarray:
+        """The place stage: the fused working-size ``mask`` placed on the frame's colour edges
+        at the size of the input ``image`` (:func:`~bgsub.background.guided.guided_mask`, with
+        ``work``, the frame at the working size), or with ``edge_radius`` 0 as it is, scaled up
+        bilinearly. ``(H, W) uint8`` 0/255."""
+        c = self.config
+        if c.edge_radius == 0:
+            return _to_input(mask, image.shape, binary=True)
+        full = work if work.shape == image.shape else image
+        return guided_mask(mask, work, full, radius=c.edge_radius, eps=c.edge_eps,
+                           step=c.edge_step)
+
+    def _restart(self, work: np.ndarray, gray: np.ndarray, data: Any) -> None:
+        """Start every stage over from ``work`` (the frame; ``gray`` its gray image, ``data``
+        what the front end keeps of it): the first frame, a new shot."""
+        self._lesson = None
+        for stage in (self.persistence, self.object_colours, self.bg, self.still_switch,
+                      self.camera):
+            stage.restart(work)
+        self.previous.data, self.previous.gray, self.previous.work = data, gray, work
 
     # ------------------------------------------------------------------ what the engine saw
 
     @property
+    def fit(self) -> Any:
+        """The camera stage's RANSAC fit (:class:`~bgsub.camera.CameraFit`), which a caller
+        may replace."""
+        return self.camera.fit
+
+    @fit.setter
+    def fit(self, fit: Any) -> None:
+        self.camera.fit = fit
+
+    @property
+    def known_motion(self) -> Any:
+        """The camera motion given (:class:`~bgsub.camera.KnownMotion`), or the stage's null
+        one (every frame fitted)."""
+        return self.camera.known
+
+    @property
     def camera_still(self) -> bool:
         """Whether the last frame was taken as seen by a still camera (``still_model``)."""
-        return self.still_switch is not None and self.still_switch.camera_still
+        return self.still_switch.camera_still
 
     @property
     def last_result(self) -> Optional[MotionResult]:
         """What the front end measured for the last frame (working-size pixels; a fit the
         small-region rule refused shows as refused), or None where it measured nothing (the
         first, a blank frame)."""
-        return self._last
+        return self.previous.result
 
     @property
     def last_motion(self) -> Optional[np.ndarray]:
@@ -396,7 +410,7 @@ class MovingCameraEngine(Engine):
         by ``still_below`` px: that motion is then applied with a later frame's, so the
         product of the matrices is the camera's path. None where the engine measured none (a
         blank frame, a scene cut) and before the first frame."""
-        matrix = self._last_matrix
+        matrix = self.previous.applied
         if matrix is None or self._in_shape is None:
             return None
         h, w = self._in_shape[:2]
@@ -409,7 +423,7 @@ class MovingCameraEngine(Engine):
     def get_background_image(self) -> Optional[np.ndarray]:
         """The background model's mean in the current frame's coordinates, at the input size
         (like the input: gray or BGR uint8), or None before the first frame."""
-        self._finish_update()
+        self._learn()
         model = self.still_switch.model if self.camera_still else self.bg
         img = model.background_image()
         if img is None or self._in_shape is None:
@@ -422,12 +436,12 @@ class MovingCameraEngine(Engine):
         foreground mask tints the frame magenta; a front end with a colour picture of its motion
         has it blended in, with its colour-wheel legend in the bottom-right corner.
         ``(H, W, 3) uint8``, None before two frames."""
-        if self._last_frame is None or self._last is None:
+        prev = self.previous
+        if prev.frame is None or prev.result is None:
             return None
-        res = self._last
-        colour = None if res is NO_MOTION else self.frontend.flow_colour(
-            self._last_frame.shape[:2])
-        canvas = _to_input(draw_debug(self._last_frame, self._last_mask, res, colour,
+        colour = None if prev.result is NO_MOTION else self.frontend.flow_colour(
+            prev.frame.shape[:2])
+        canvas = _to_input(draw_debug(prev.frame, prev.mask, prev.result, colour,
                                       self.last_status), self._in_shape)
         scale = self.frontend.colour_scale()
         if colour is None or scale is None:

@@ -21,10 +21,8 @@ import numpy as np
 
 from bgsub._util import fast_median, is_affine  # noqa: F401  (re-exported)
 from bgsub.errors import InputError
-from bgsub.settings import check_settings, setting
 
 __all__ = [
-    "CameraMotionConfig",
     "fast_median",
     "GlobalMotion",
     "AUTO",
@@ -447,21 +445,3 @@ def _within(dx: np.ndarray, dy: np.ndarray, threshold: float) -> np.ndarray:
     if unsure.any():
         near[unsure] = np.hypot(dx[unsure], dy[unsure]) < threshold
     return near
-
-
-@dataclass(frozen=True)
-class CameraMotionConfig:
-    """How the camera motion is fitted to a frame's correspondences (its RANSAC settings)."""
-
-    motion_model: str = setting(AUTO, MOTION_MODEL_HELP, choices=FIT_MODELS)
-    threshold: float = setting(1.5, "RANSAC inlier distance in working-size pixels", above=0)
-
-    def __post_init__(self) -> None:
-        check_settings(self)
-
-    def fit(self, src: np.ndarray, dst: np.ndarray, *, weights: Optional[np.ndarray] = None,
-            frame_size: Optional[tuple] = None) -> GlobalMotion:
-        """:func:`fit_global_motion` of ``(N, 2)`` correspondences ``src -> dst`` with this
-        model and threshold (``weights`` ``(N,)``; ``frame_size`` ``(W, H)``)."""
-        return fit_global_motion(src, dst, weights=weights, model=self.motion_model,
-                                 threshold=self.threshold, frame_size=frame_size)

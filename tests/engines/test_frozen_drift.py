@@ -6,7 +6,7 @@ import numpy as np
 
 from bgsub.background.compensated import CompensatedBackground
 from bgsub.engines import create_engine
-from bgsub.engines.parts import FrozenModelRegistration
+from bgsub.camera import FrozenModelRegistration
 from bgsub.motion.global_motion import corner_error
 from conftest import model_path as _model_path
 

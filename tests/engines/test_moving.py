@@ -13,7 +13,7 @@ from bgsub.engines.frontend import MotionResult
 from bgsub.engines.frontends.grbm import GrbmFrontEnd, Reading, RetryWait
 from bgsub.engines.frontends.lucas_kanade import LucasKanadeFrontEnd
 from bgsub.engines.moving import MovingCameraEngine, work_size
-from bgsub.engines.parts import SMALL_REGION, FrozenModelRegistration, spans_frame
+from bgsub.camera import SMALL_REGION, FrozenModelRegistration, spans_frame
 from bgsub.samples import SceneSpec, render_frames
 from conftest import OracleMatcher, model_path as _model_path, random_texture as _texture, shifted as _shift
 
@@ -495,7 +495,7 @@ def test_an_engine_built_on_a_front_end_has_the_registered_defaults(frontend_typ
     direct, registered = MovingCameraEngine(frontend_type()), create_engine(name)
     for engine in (direct, registered):
         assert isinstance(engine, MovingCameraEngine)
-    assert direct.config == registered.config and direct.camera == registered.camera
+    assert direct.config == registered.config and direct.camera.config == registered.camera.config
     assert direct.bg.config == registered.bg.config
     assert direct.fusion.config == registered.fusion.config
     assert direct.frontend.config == registered.frontend.config

@@ -23,17 +23,7 @@ from bgsub.motion.global_motion import GlobalMotion
 from bgsub.motion.refine import MIN_REFINE_WINDOW, refine_vectors
 from bgsub.settings import check_settings, config_params, setting
 
-__all__ = ["GrbmConfig", "GrbmFrontEnd", "GRBM_TUNED", "FLOW_PARAMS", "Reading", "RetryWait"]
-
-# The gated RBM's flow-violation evidence is dense but noisier than tracked corners: weakly
-# textured object patches read the camera's motion and would damp true objects, so its engine
-# leans on violation evidence to boost rather than to damp. How noisy its vectors are depends
-# on the footage (sharp BMS-26 vs blurred CDnet traffic), so a violation is a disagreement of
-# 0.75 px or 4 robust standard deviations of the frame's disagreements, whichever is larger.
-# With the coarsest level read to convergence its vectors support a homography at a tighter
-# 1 px RANSAC threshold. Tuned on the real set (docs/BENCHMARKS.md).
-GRBM_TUNED = dict(ransac_threshold=1.0, flow_boost=1.5, flow_damp=0.2, violation_threshold=0.75,
-                  violation_noise=4.0)
+__all__ = ["GrbmConfig", "GrbmFrontEnd", "FLOW_PARAMS", "Reading", "RetryWait"]
 
 #: The :class:`FlowConfig` settings that are parameters of the ``grbm`` engine.
 FLOW_PARAMS = ("stride", "levels", "max_motion", "min_texture", "max_patches", "iterations",
@@ -143,7 +133,6 @@ class GrbmFrontEnd(MotionFrontEnd):
     description = ("moving camera: gated-RBM patch motion (coarse to fine) + RANSAC camera "
                    "motion + compensated background model (the paper's method)")
     config_type = GrbmConfig
-    stage_defaults = GRBM_TUNED
 
     def __init__(self, config: Optional[GrbmConfig] = None, *,
                  flow: Optional[FlowConfig] = None) -> None:

@@ -20,6 +20,7 @@ from bgsub.motion.config import FlowConfig
 from bgsub.motion.flowfield import (FlowEstimate, FramePyramid, dense_from_patches,
                                     estimate_flow, prepare_first_frame)
 from bgsub.motion.global_motion import GlobalMotion
+from bgsub.motion.patches import PatchMotion
 from bgsub.motion.refine import MIN_REFINE_WINDOW, refine_vectors
 from bgsub.settings import check_settings, config_params, setting
 
@@ -157,7 +158,7 @@ class GrbmFrontEnd(MotionFrontEnd):
         return FramePyramid(gray)
 
     def prepare(self, data: FramePyramid) -> None:
-        if not hasattr(self.model, "patch_motion"):
+        if not isinstance(self.model, PatchMotion):
             # With prior_levels, the next pair is normally read from the previous motion on
             # the reduced pyramid: prepare that; a read without a prior (or a retry) cuts the
             # other levels when it needs them.
@@ -321,17 +322,17 @@ def _result(reading: Reading) -> MotionResult:
 
 
 def _load(model: Any, contrast_floor: float) -> Any:
-    """The patch-motion model: a name or path loaded, a GatedRBM or any object with the
-    ``patch_motion`` contract (:func:`bgsub.motion.flowfield.patch_motion`) as it is. A
-    ``contrast_floor`` other than a contrast-normalised model's own gives a copy with its own
-    readout caches (the model object may be shared: a caller's)."""
+    """The patch-motion model: a name or path loaded, a GatedRBM or a
+    :class:`~bgsub.motion.patches.PatchMotion` as it is. A ``contrast_floor`` other than a
+    contrast-normalised model's own gives a copy with its own readout caches (the model object
+    may be shared: a caller's)."""
     from bgsub.model.rbm import load_model
 
-    model = model if hasattr(model, "patch_motion") else load_model(model)
+    model = model if isinstance(model, PatchMotion) else load_model(model)
     if (contrast_floor > 0 and getattr(model, "normalization", None) == "contrast"
             and contrast_floor != model.contrast_floor):
         model = dataclasses.replace(model, contrast_floor=float(contrast_floor), _cache={})
-    if not hasattr(model, "patch_motion"):
+    if not isinstance(model, PatchMotion):
         # Per-model constants of the readout, once here rather than in the first frame.
         from bgsub.model.readout import precompute
         from bgsub.motion.flowfield import model_range

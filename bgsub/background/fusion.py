@@ -108,6 +108,10 @@ class FusionConfig:
         check_settings(self)
 
 
+#: The default settings, whose values the module's functions take as their defaults.
+_DEFAULT = FusionConfig()
+
+
 class Fusion:
     """The foreground decision of one frame: the motion evidence (:meth:`vector_evidence` and
     :meth:`image_evidence`, which the engine makes in two threads, then :meth:`combined`),
@@ -213,10 +217,10 @@ def flow_violation_map(
     *,
     weights: np.ndarray,
     shape: tuple,
-    threshold: float = 1.5,
+    threshold: float = _DEFAULT.violation_threshold,
     cell: int = 8,
     radius: int = 1,
-    noise_scale: float = 0.0,
+    noise_scale: float = _DEFAULT.violation_noise,
 ) -> np.ndarray:
     """Where local motion disagrees with the camera's.
 
@@ -286,8 +290,8 @@ def flow_violation_map(
     return cells_to_pixels(frac, (h, w), cell)
 
 
-def clean_mask(mask: np.ndarray, *, min_area: int = 30, close: int = 5,
-               fill_holes: int = 0) -> np.ndarray:
+def clean_mask(mask: np.ndarray, *, min_area: int = _DEFAULT.min_area,
+               close: int = _DEFAULT.close, fill_holes: int = _DEFAULT.fill_holes) -> np.ndarray:
     """Tidy a binary mask: 3x3 opening, ``close`` x ``close`` closing, drop small blobs, fill holes.
 
     Parameters
@@ -407,12 +411,12 @@ def fuse_masks(
     bg_score: np.ndarray,
     violation: Optional[np.ndarray] = None,
     *,
-    flow_boost: float = 0.0,
-    flow_damp: float = 0.0,
-    threshold: float = 1.0,
-    min_area: int = 30,
-    close: int = 5,
-    fill_holes: int = 0,
+    flow_boost: float = _DEFAULT.flow_boost,
+    flow_damp: float = _DEFAULT.flow_damp,
+    threshold: float = _DEFAULT.threshold,
+    min_area: int = _DEFAULT.min_area,
+    close: int = _DEFAULT.close,
+    fill_holes: int = _DEFAULT.fill_holes,
 ) -> np.ndarray:
     """Fuse background difference and flow violation into a clean 0/255 mask.
 

@@ -203,7 +203,7 @@ def fit_global_motion(
     *,
     weights: Optional[np.ndarray] = None,
     model: str = "homography",
-    threshold: float = 1.5,
+    threshold: float,
     min_weight: float = 0.0,
     min_points: int = 12,
     min_inlier_ratio: float = 0.2,

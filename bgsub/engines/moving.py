@@ -44,14 +44,14 @@ import numpy as np
 
 from bgsub.background.compensated import BackgroundConfig, CompensatedBackground
 from bgsub.background.exposure import match_exposure, same_exposure
+from bgsub.background.foreground import Foreground
 from bgsub.background.fusion import Fusion, FusionConfig
 from bgsub.background.guided import guided_mask
 from bgsub.background.object_colour import ObjectColours
 from bgsub.background.persistence import BlobPersistence
 from bgsub.background.scene_cut import SceneCut
 from bgsub.background.still_switch import NoStillSwitch, StillCameraSwitch
-from bgsub.camera import (KNOWN_MOTION_HELP, CameraConfig, CameraDecision, CameraStage,
-                          KnownMotion, work_scale)
+from bgsub.camera import KNOWN_MOTION_HELP, CameraConfig, CameraStage, KnownMotion, work_scale
 from bgsub.engines.base import (Engine, Param, check_fgmask, check_frame, check_learning_rate,
                                 opencv_keywords, register_engine)
 from bgsub.engines.config import MIN_WORK_WIDTH, EngineConfig, engine_params, stage_configs
@@ -106,6 +106,30 @@ def _to_input(img: np.ndarray, in_shape: tuple, *, binary: bool = False) -> np.n
     return up
 
 
+def place_mask(mask: np.ndarray, work: np.ndarray, image: np.ndarray,
+               config: EngineConfig) -> np.ndarray:
+    """The place stage: the fused working-size ``mask`` placed on the frame's colour edges at
+    the size of the input ``image`` (:func:`~bgsub.background.guided.guided_mask`, with
+    ``work``, the frame at the working size), or with ``edge_radius`` 0 as it is, scaled up
+    bilinearly. ``(H, W) uint8`` 0/255."""
+    if config.edge_radius == 0:
+        return _to_input(mask, image.shape, binary=True)
+    full = work if work.shape == image.shape else image
+    return guided_mask(mask, work, full, radius=config.edge_radius, eps=config.edge_eps,
+                       step=config.edge_step)
+
+
+def to_input_motion(matrix: np.ndarray, in_shape: tuple, work_width: int) -> np.ndarray:
+    """A working-size motion ``matrix`` (3, 3) in the pixel coordinates of input frames of
+    ``in_shape`` ``(H, W, ...)`` (a copy)."""
+    h, w = in_shape[:2]
+    ww, wh = work_size(w, h, work_width)
+    if (ww, wh) == (w, h):
+        return matrix.copy()
+    scale = work_scale((h, w), (wh, ww))
+    return np.linalg.solve(scale, matrix @ scale)
+
+
 @dataclass
 class Previous:
     """What the engine keeps of the frames before the current one: the last frame it took (the
@@ -120,58 +144,20 @@ class Previous:
     mask: Optional[np.ndarray] = None  # ... and its (h, w) uint8 0/255 mask (working size)
 
 
-@dataclass
-class Comparison:
-    """The compare stage's output: the warped model's view of the frame and the motion
-    evidence."""
-
-    score: np.ndarray  # (h, w) float32: the background difference (above 1 = differs)
-    violation: Optional[np.ndarray]  # (h, w) float32 in [0, 1]: motion against the camera's
-    along: Optional[np.ndarray]  # (h, w) float32: the frames' evidence of the camera's motion
-    exposed: np.ndarray  # the frame at the compensated model's exposure, (h, w[, 3]) uint8
-    gain: float  # what the frame was divided by to get there
-
-
-@dataclass
-class Lesson:
-    """A frame's background update, deferred to the next frame (where it runs in the second
-    thread, alongside the motion front end)."""
-
-    exposed: np.ndarray  # the frame at the compensated model's exposure (h, w[, 3]) uint8
-    gain: float
-    work: np.ndarray  # the frame as it came, for the still-camera model
-    mask: np.ndarray  # (h, w) uint8 0/255: the frame's mask, copied (apply may return it)
-    violation: Optional[np.ndarray]  # the motion evidence, for Fusion.learn_slowly
-    confirmed: Optional[np.ndarray]  # (h, w) bool: Fusion.confirmed
-    rate: float  # the caller's learning rate
-
-
 class MovingCameraEngine(Engine):
-    """A background subtractor for a moving camera, built on the motion front end ``frontend``.
-
-    The stage settings are keyword-only frozen dataclasses; each left out takes its defaults,
-    with those the front end replaces (``frontend.stage_defaults``), as ``create_engine`` does
-    (a stage given is used as it is: ``create_engine(name, **params)`` keeps the front end's
-    defaults of the settings not named)::
+    """A background subtractor for a moving camera, built on the motion front end ``frontend``;
+    a frame passes its stages motion, camera, compare, decide, learn (deferred to the next
+    frame) and place (the module docstring). A stage setting left out takes its defaults, with
+    those the front end replaces (``frontend.stage_defaults``)::
 
         engine = MovingCameraEngine(LucasKanadeFrontEnd(LucasKanadeConfig(max_corners=800)),
                                     fusion=FusionConfig(min_area=50))
 
-    A frame passes the stages motion (the front end), camera (:attr:`camera`), compare (the
-    background model :attr:`bg` and the motion evidence of :attr:`fusion`), decide (scene cut,
-    still-camera switch, fusion, persistence, object colours, edge holes), learn (deferred to
-    the next frame) and place (the mask on the frame's edges, at the input's size).
-
-    Attributes
-    ----------
-    last_status : str
-        ``"ok"`` or ``"fallback: <reason>"`` for the last frame.
-    frontend, config, camera, bg, fusion
-        The front end, the engine's settings, the camera stage
-        (:class:`~bgsub.camera.CameraStage`), the compensated background model and the fusion.
-    scene_cut, still_switch, exposure, persistence, object_colours
-        The foreground policies (:mod:`bgsub.background`; ``still_switch`` does nothing when
-        ``still_model`` is 0). ``known_motion`` is the camera stage's given motion.
+    Attributes: ``last_status`` (``"ok"`` or ``"fallback: <reason>"`` for the last frame),
+    ``frontend``, ``config`` (:class:`EngineConfig`), ``camera`` (the camera stage,
+    :class:`~bgsub.camera.CameraStage`), ``foreground`` (the compare, decide and learn stages,
+    :class:`~bgsub.background.foreground.Foreground`) with its compensated background model
+    ``bg``, ``fusion`` and ``still_switch``, and ``previous`` (:class:`Previous`).
     """
 
     def __init__(self, frontend: MotionFrontEnd, *, engine: Optional[EngineConfig] = None,
@@ -186,18 +172,21 @@ class MovingCameraEngine(Engine):
         self.camera = CameraStage(camera or defaults[CameraConfig], known_motion)
         self.bg = CompensatedBackground(background or defaults[BackgroundConfig])
         self.fusion = Fusion(fusion or defaults[FusionConfig])
-        self.exposure = match_exposure if c.match_exposure else same_exposure
-        self.scene_cut = SceneCut(c.scene_cut, c.cut_support)
         self.still_switch = (StillCameraSwitch(still_model=c.still_model, still_snr=c.still_snr,
-                                               window=c.still_window, still_versus=c.still_versus)
+                                               window=c.still_window,
+                                               still_versus=c.still_versus)
                              if c.still_model > 0 else NoStillSwitch())
-        self.persistence = BlobPersistence(self.fusion.config.persist)
-        self.object_colours = ObjectColours(radius=self.fusion.config.grow_radius,
-                                            above=self.fusion.config.grow_above)
         self.thread = SecondThread(overlap=c.overlap, name=self.name)
+        self.foreground = Foreground(
+            self.bg, self.fusion, still_switch=self.still_switch,
+            exposure=match_exposure if c.match_exposure else same_exposure,
+            scene_cut=SceneCut(c.scene_cut, c.cut_support),
+            persistence=BlobPersistence(self.fusion.config.persist),
+            object_colours=ObjectColours(radius=self.fusion.config.grow_radius,
+                                         above=self.fusion.config.grow_above),
+            alongside=self.thread.alongside)
         self.last_status = "ok"
         self.previous = Previous()
-        self._lesson: Optional[Lesson] = None
         self._in_shape: Optional[tuple] = None  # the input frames' (H, W) or (H, W, 3)
 
     # ------------------------------------------------------------------ Engine API
@@ -220,7 +209,7 @@ class MovingCameraEngine(Engine):
             gray = (smoothed if smoothed.ndim == 2
                     else cv2.cvtColor(smoothed, cv2.COLOR_BGR2GRAY))
             mask = self._step(smoothed, gray, rate)
-            out = self._place(mask, work, image)
+            out = place_mask(mask, work, image, self.config)
         self.previous.frame, self.previous.mask = work, mask
         if fgmask is not None:
             fgmask[...] = out
@@ -243,7 +232,7 @@ class MovingCameraEngine(Engine):
         empty = np.zeros(gray.shape, np.uint8)
         if float(cv2.meanStdDev(gray)[1][0, 0]) < self.config.min_contrast:
             # Blank or textureless frame: no motion can be measured; keep the model as it is.
-            self._learn()
+            self.foreground.learn()
             self.last_status = "fallback: blank or textureless frame"
             return empty
         if prev.data is None:
@@ -256,18 +245,15 @@ class MovingCameraEngine(Engine):
         cur = self.frontend.frame_data(gray)
         seen = self.camera.decide(self._motion(cur, gray), gray, self.bg, frozen=frozen)
         prev.result = seen.result
-        compared = self._compare(work, seen, frozen=frozen)
-        young = self._region.unwatched(self.bg.age < self.bg.config.min_age)
-        if self.scene_cut.is_cut(compared.score, young, seen.result):
+        compared = self.foreground.compare(
+            work, prev.work, seen.result, seen.matrix, fixed=seen.refused,
+            warp=lambda: self.camera.warp(self.bg, seen.applied, frozen=frozen))
+        if self.foreground.is_cut(compared, seen.result, self._region.unwatched):
             self._restart(work, gray, cur)
             self.last_status = SCENE_CUT
             return empty
         prev.applied = seen.applied
-        mask = self._decide(work, gray, seen, compared)
-        self._lesson = Lesson(exposed=compared.exposed, gain=compared.gain, work=work,
-                              mask=mask.copy(), violation=compared.violation,
-                              confirmed=self.fusion.confirmed(mask, compared.violation,
-                                                              compared.along), rate=rate)
+        mask = self.foreground.decide(work, gray, seen.result, seen.matrix, compared, rate)
         prev.data, prev.gray, prev.work = cur, gray, work
         self.last_status = seen.status
         return mask
@@ -282,7 +268,7 @@ class MovingCameraEngine(Engine):
         the second thread applies the last frame's update and prepares ``cur`` for the next
         pair; over the region of interest's vectors only."""
         fit, prior = self.camera.fit_for(self._in_shape, gray.shape)
-        with self.thread.alongside(self._learn, lambda: self.frontend.prepare(cur)):
+        with self.thread.alongside(self.foreground.learn, lambda: self.frontend.prepare(cur)):
             if np.array_equal(gray, self.previous.gray):
                 # A repeated frame (a frame-rate conversion's duplicate, a paused stream): the
                 # camera did not move, whatever a noisy reading would say; a frozen model
@@ -292,80 +278,10 @@ class MovingCameraEngine(Engine):
                                            fit=self._region.restrict_fit(fit))
         return self._region.restrict(result, gray.shape)
 
-    def _compare(self, work: np.ndarray, seen: CameraDecision, *, frozen: bool) -> Comparison:
-        """The compare stage: the background model is warped by the camera stage's motion
-        (:meth:`_warp_model`) and scores the frame brought to its exposure, and the vectors
-        give their violation map, while the second thread makes the frames' own evidence
-        (against the camera, and along it) from the frames as they came, both against the
-        camera's motion (the vectors' with the fixed violation threshold for a refused small
-        region: its vectors are one consistent motion, not noise about the camera's)."""
-        res, image = seen.result, []
-        prev = self.previous.work
-
-        def evidence() -> None:
-            image.append(self.fusion.image_evidence(res.points, res.disp, res.weights,
-                                                    seen.matrix, prev, work))
-
-        # The frames' evidence is the longer job: the vectors' map is made in this thread.
-        with self.thread.alongside(evidence):
-            self._warp_model(seen.applied, frozen=frozen)
-            exposed, gain = self.exposure(work, self.bg)
-            score = self.bg.score(exposed)
-            vectors = self.fusion.vector_evidence(
-                res.points, res.disp, res.evidence_weights, seen.matrix, work.shape[:2],
-                noise_scale=0.0 if seen.refused else None)
-        against, along = image[0] if image[0] is not None else (None, None)
-        return Comparison(score=score, violation=self.fusion.combined(vectors, against),
-                          along=along, exposed=exposed, gain=gain)
-
-    def _warp_model(self, applied: np.ndarray, *, frozen: bool) -> None:
-        """Warp the background model by ``applied`` (3, 3); a ``frozen`` one is warped sharp,
-        and forgets the pixels the previous frame saw only in part."""
-        self.bg.warp(applied, sharp=frozen)
-        if frozen:
-            self.camera.registration.forget_unseen(self.bg, applied)
-
-    def _decide(self, work: np.ndarray, gray: np.ndarray, seen: CameraDecision,
-                compared: Comparison) -> np.ndarray:
-        """The decide stage: the (h, w) uint8 0/255 mask of the frame, from the compensated
-        model's score (or the still-camera model's, while the camera is still) and the motion
-        evidence, less the blobs new since the last frame, grown over the last objects'
-        colours, with the holes it and the frame's edges enclose filled."""
-        still = self.still_switch.judge(work, seen.result, compensated=self.bg,
-                                        compensated_score=compared.score)
-        score = compared.score if still is None else still
-        mask = self.persistence.filter(self.fusion.mask(score, compared.violation), seen.matrix)
-        mask = self.object_colours.grow(mask, work)
-        # learn_slowly's closing is left to the update, which the second thread runs.
-        return self.fusion.close_by_edges(mask, gray)
-
-    def _learn(self) -> None:
-        """The learn stage: the last frame's deferred background update, if any."""
-        if self._lesson is not None:
-            u, self._lesson = self._lesson, None
-            slow = self.fusion.learn_slowly(u.mask, u.violation)
-            self.object_colours.learn(u.work, u.mask)
-            self.bg.update(u.exposed, slow, u.rate, exposure=u.gain, confirmed=u.confirmed)
-            self.still_switch.update(u.work, slow, u.rate)
-
-    def _place(self, mask: np.ndarray, work: np.ndarray, image: np.ndarray) -> np.ndarray:
-        """The place stage: the fused working-size ``mask`` placed on the frame's colour edges
-        at the size of the input ``image`` (:func:`~bgsub.background.guided.guided_mask`, with
-        ``work``, the frame at the working size), or with ``edge_radius`` 0 as it is, scaled up
-        bilinearly. ``(H, W) uint8`` 0/255."""
-        c = self.config
-        if c.edge_radius == 0:
-            return _to_input(mask, image.shape, binary=True)
-        full = work if work.shape == image.shape else image
-        return guided_mask(mask, work, full, radius=c.edge_radius, eps=c.edge_eps,
-                           step=c.edge_step)
-
     def _restart(self, work: np.ndarray, gray: np.ndarray, data: Any) -> None:
         """Start every stage over from ``work`` (the frame; ``gray`` its gray image, ``data``
         what the front end keeps of it): the first frame, a new shot."""
-        self._lesson = None
-        for stage in (self.persistence, self.object_colours, self.bg, self.still_switch,
-                      self.camera):
+        for stage in (self.foreground, self.camera):
             stage.restart(work)
         self.previous.data, self.previous.gray, self.previous.work = data, gray, work
 
@@ -413,17 +329,12 @@ class MovingCameraEngine(Engine):
         matrix = self.previous.applied
         if matrix is None or self._in_shape is None:
             return None
-        h, w = self._in_shape[:2]
-        ww, wh = work_size(w, h, self.config.work_width)
-        if (ww, wh) == (w, h):
-            return matrix.copy()
-        scale = work_scale((h, w), (wh, ww))
-        return np.linalg.solve(scale, matrix @ scale)
+        return to_input_motion(matrix, self._in_shape, self.config.work_width)
 
     def get_background_image(self) -> Optional[np.ndarray]:
         """The background model's mean in the current frame's coordinates, at the input size
         (like the input: gray or BGR uint8), or None before the first frame."""
-        self._learn()
+        self.foreground.learn()
         model = self.still_switch.model if self.camera_still else self.bg
         img = model.background_image()
         if img is None or self._in_shape is None:
@@ -439,15 +350,21 @@ class MovingCameraEngine(Engine):
         prev = self.previous
         if prev.frame is None or prev.result is None:
             return None
-        colour = None if prev.result is NO_MOTION else self.frontend.flow_colour(
-            prev.frame.shape[:2])
-        canvas = _to_input(draw_debug(prev.frame, prev.mask, prev.result, colour,
-                                      self.last_status), self._in_shape)
-        scale = self.frontend.colour_scale()
-        if colour is None or scale is None:
-            return canvas
-        # The legend speaks of the picture's pixels: the input's, not the working size's.
-        return add_colour_wheel(canvas, scale * canvas.shape[1] / colour.shape[1])
+        return debug_picture(prev, self.frontend, self.last_status, self._in_shape)
+
+
+def debug_picture(prev: Previous, frontend: MotionFrontEnd, status: str,
+                  in_shape: tuple) -> np.ndarray:
+    """:meth:`MovingCameraEngine.debug_image` of the last frame ``prev`` (:class:`Previous`,
+    with a frame and a result) seen through ``frontend``, with ``status`` written, at the size
+    of ``in_shape``: ``(H, W, 3) uint8``."""
+    colour = None if prev.result is NO_MOTION else frontend.flow_colour(prev.frame.shape[:2])
+    canvas = _to_input(draw_debug(prev.frame, prev.mask, prev.result, colour, status), in_shape)
+    scale = frontend.colour_scale()
+    if colour is None or scale is None:
+        return canvas
+    # The legend speaks of the picture's pixels: the input's, not the working size's.
+    return add_colour_wheel(canvas, scale * canvas.shape[1] / colour.shape[1])
 
 
 def draw_debug(frame: np.ndarray, mask: Optional[np.ndarray], res: MotionResult,

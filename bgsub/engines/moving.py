@@ -3,32 +3,24 @@
 RBM's patch motion, ``compensated`` with Lucas-Kanade corner tracks; comparing them isolates the
 motion estimator. :func:`register_frontend` registers an engine for any front end.
 
-Each frame, at the working size (``work_width``; the mask is returned at the input size):
+Each frame passes six stages, at the working size (``work_width``; the mask is returned at the
+input size):
 
-1. motion: the front end measures local motion and fits the camera's (RANSAC); a fit seen on
-   only a small region is refused (:class:`~bgsub.engines.parts.SmallRegionRule`), a refused
-   one replaced by the previous frame's motion (``last_status`` says why);
-2. the motion to apply: small motion is held back (:class:`~bgsub.engines.parts.MotionHoldBack`);
-   a frozen model (``learning_rate=0``) is registered to the frame
-   (:class:`~bgsub.engines.parts.FrozenModelRegistration`);
-3. the compensated background model is warped and scores the frame, brought to the model's
-   exposure (:func:`~bgsub.engines.parts.match_exposure`), and the vectors give their
-   violation map, while the other thread makes the frames' own motion evidence
-   (:class:`~bgsub.background.fusion.Fusion`);
-4. a new shot restarts the model (:class:`~bgsub.engines.parts.SceneCut`);
-5. while the camera is still, a never-warped sample model's score of the frame as it came
-   replaces the compensated one's (:class:`~bgsub.engines.parts.StillCameraSwitch`; its
-   samples hold each pixel's range of values, and over water a global gain estimate would
-   only add the glitter's own fluctuation);
-6. fusion and clean-up give the mask, less the blobs that touch nothing of the last frame's
-   (:class:`~bgsub.engines.parts.BlobPersistence`), grown over the nearby pixels coloured like
-   the last frame's objects (:class:`~bgsub.background.object_colour.ObjectColours`), with the
-   holes it and the frame's edges enclose filled
-   (:func:`~bgsub.background.edge_holes.fill_edge_holes`); the model's update, and the learning
-   of this frame's objects' colours, is deferred to the next frame, where it runs in the second
-   thread (``overlap=1``) beside the front end;
-7. the mask is placed on the frame's own colour edges, at the input's size
-   (:func:`~bgsub.background.guided.guided_mask`, ``edge_radius``).
+1. motion: the front end measures local motion, and fits the camera's with the fit the camera
+   stage hands it (:meth:`~bgsub.camera.CameraStage.fit_for`: RANSAC, or the known motion);
+2. camera (:class:`~bgsub.camera.CameraStage`): a fit seen on only a small region is refused, a
+   refused one replaced by the previous frame's motion (``last_status`` says why), small motion
+   held back, a frozen model (``learning_rate=0``) registered to the frame;
+3. compare (:meth:`~bgsub.background.foreground.Foreground.compare`): the compensated model,
+   warped by that motion, scores the frame brought to its exposure, and the vectors give their
+   violation map, while the second thread makes the frames' own motion evidence;
+4. decide (:meth:`~bgsub.background.foreground.Foreground.decide`): a new shot restarts every
+   stage; else the still-camera switch, the fusion, blob persistence, the last objects' colours
+   and the holes the frame's edges close give the mask;
+5. learn (:meth:`~bgsub.background.foreground.Foreground.learn`): the models' update, deferred
+   to the next frame, where it runs in the second thread (``overlap=1``) beside the front end;
+6. place (:func:`place_mask`): the mask is placed on the frame's own colour edges, at the
+   input's size (:func:`~bgsub.background.guided.guided_mask`, ``edge_radius``).
 
 Frames that cannot be processed normally (blank, textureless, a scene cut) never raise: they
 return an empty mask (or, for a scene cut, restart the model) and say why in ``last_status``.
@@ -63,7 +55,8 @@ from bgsub.io.flowio import add_colour_wheel, draw_flow_arrows
 from bgsub.motion.global_motion import apply_homography
 from bgsub.motion.result import NO_MOTION, MotionResult
 
-__all__ = ["MovingCameraEngine", "register_frontend", "work_size", "draw_debug", "SCENE_CUT"]
+__all__ = ["MovingCameraEngine", "Previous", "register_frontend", "work_size", "draw_debug",
+           "place_mask", "SCENE_CUT"]
 
 #: ``last_status`` of a frame taken for a new shot (the model restarts from it).
 SCENE_CUT = "fallback: scene cut"
@@ -104,6 +97,19 @@ def _to_input(img: np.ndarray, in_shape: tuple, *, binary: bool = False) -> np.n
     if binary:  # > 127 -> 255, else 0, in place
         cv2.threshold(up, 127, 255, cv2.THRESH_BINARY, dst=up)
     return up
+
+
+def working_frames(image: np.ndarray, config: EngineConfig) -> tuple:
+    """``(work, smoothed, gray)``: the input ``image`` at the working size (never the caller's
+    buffer), blurred by ``smooth``, and that one's (h, w) uint8 gray image."""
+    work = _to_work(image, config.work_width)
+    if work is image:
+        # The model keeps the frame past this call (the previous frame of the next pair, the
+        # deferred update): not the caller's buffer, which a reading loop may reuse.
+        work = image.copy()
+    smoothed = _smoothed(work, config.smooth)
+    gray = smoothed if smoothed.ndim == 2 else cv2.cvtColor(smoothed, cv2.COLOR_BGR2GRAY)
+    return work, smoothed, gray
 
 
 def place_mask(mask: np.ndarray, work: np.ndarray, image: np.ndarray,
@@ -200,14 +206,7 @@ class MovingCameraEngine(Engine):
         self._in_shape = image.shape
         self.camera.known.next_frame()
         with limited_threads(self.config.threads):
-            work = _to_work(image, self.config.work_width)
-            if work is image:
-                # The model keeps the frame past this call (the previous frame of the next pair,
-                # the deferred update): not the caller's buffer, which a reading loop may reuse.
-                work = image.copy()
-            smoothed = _smoothed(work, self.config.smooth)
-            gray = (smoothed if smoothed.ndim == 2
-                    else cv2.cvtColor(smoothed, cv2.COLOR_BGR2GRAY))
+            work, smoothed, gray = working_frames(image, self.config)
             mask = self._step(smoothed, gray, rate)
             out = place_mask(mask, work, image, self.config)
         self.previous.frame, self.previous.mask = work, mask

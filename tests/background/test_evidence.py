@@ -4,7 +4,7 @@ import cv2
 import numpy as np
 import pytest
 
-from conftest import random_texture, shifted
+from helpers import random_texture, shifted
 
 from bgsub.background.evidence import camera_evidence_map, motion_evidence_map, residual_field
 from bgsub.background.fusion import flow_violation_map

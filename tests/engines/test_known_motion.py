@@ -7,7 +7,7 @@ object (half the frame wide) moving 1 px a frame, enough vectors to pull a RANSA
 import cv2
 import numpy as np
 import pytest
-from conftest import model_path
+from helpers import model_path
 
 from bgsub.engines import create_engine
 from bgsub.camera import KnownMotion

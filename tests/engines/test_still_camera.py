@@ -10,7 +10,7 @@ from bgsub.motion.global_motion import GlobalMotion
 from bgsub.engines.frontend import MotionResult
 from bgsub.background.still_switch import motion_snr
 from bgsub.samples import SceneSpec, render_frames
-from conftest import model_path as _model_path
+from helpers import model_path as _model_path
 
 
 # ------------------------------------------------------------------ motion_snr

@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from conftest import random_texture, shifted
+from helpers import random_texture, shifted
 
 from bgsub.errors import InputError
 from bgsub.engines.frontends.grbm import GrbmConfig

@@ -35,8 +35,8 @@ def is_affine(matrix: np.ndarray) -> bool:
 def through_bgra(resample: Callable[[np.ndarray], np.ndarray],
                  img: np.ndarray) -> np.ndarray:
     """``resample(img)`` for an OpenCV resampling (warp, remap) that treats channels alike: a
-    3-channel ``img`` goes through BGRA, since OpenCV's 4-channel bilinear path is about twice
-    as fast as its 3-channel one and gives the same values per channel."""
+    3-channel ``img`` goes through BGRA, since OpenCV's 4-channel bilinear path is faster than
+    its 3-channel one and gives the same values per channel."""
     if img.ndim == 3 and img.shape[2] == 3:
         return cv2.cvtColor(resample(cv2.cvtColor(img, cv2.COLOR_BGR2BGRA)), cv2.COLOR_BGRA2BGR)
     return resample(img)

@@ -55,8 +55,10 @@ class BackgroundConfig:
     fg_alpha: float = setting(0.01, "learning rate of pixels called foreground (lets ghosts "
                                     "fade)", low=0, high=1)
     k_sigma: float = setting(2.0, "foreground beyond this many background standard deviations "
-                                  "...", low=0)
-    min_diff: float = setting(10.0, "... and this many gray levels (0-255)", low=0)
+                                  "(and min_diff gray levels)", low=0)
+    min_diff: float = setting(10.0, "foreground needs a difference of at least this many gray "
+                                    "levels (0-255) as well as k_sigma standard deviations",
+                              low=0)
     init_std: float = setting(12.0, "standard deviation (gray levels) of a model's first frame; "
                                     "a squared residual counts at most (4 init_std)^2 in the "
                                     "variance update, so a passing object cannot blind the "
@@ -411,7 +413,7 @@ def _per_channel(a: np.ndarray, c: int) -> np.ndarray:
     """The ``(H, W)`` float32 ``a`` as an ``(H, W, c)`` factor for ``(H, W, c)`` arrays.
 
     For ``c > 1`` it is repeated into its own contiguous array: numpy broadcasts an
-    ``(H, W, 1)`` operand with an inner loop of only ``c`` elements, which made each of
-    :meth:`CompensatedBackground.update`'s two multiplications ~3x slower than the copy costs
+    ``(H, W, 1)`` operand with an inner loop of only ``c`` elements, which slows each of
+    :meth:`CompensatedBackground.update`'s two multiplications by more than the copy costs
     (same values either way)."""
     return a[:, :, None] if c == 1 else cv2.merge([a] * c)

@@ -59,9 +59,10 @@ class FusionConfig:
                                     "background model only)", low=0, high=1)
     violation_threshold: float = setting(0.75, "disagreement with the camera motion (px) that "
                                               "counts as a violation", low=0)
-    violation_noise: float = setting(4.0, "... or this many robust standard deviations of the "
-                                          "local vectors' disagreement, if more (0 = fixed "
-                                          "threshold)", low=0)
+    violation_noise: float = setting(4.0, "a violation is also at least this many robust "
+                                          "standard deviations of the local vectors' "
+                                          "disagreement, when that is more than "
+                                          "violation_threshold (0 = fixed threshold)", low=0)
     image_cue: float = setting(1.0, "weight of the frames' own evidence: the previous frame "
                                     "moved by the local vectors, or not at all (an object the "
                                     "camera follows), explains the current one clearly better "
@@ -91,9 +92,9 @@ class FusionConfig:
                                   "the background's around them (grow_above): the flat or "
                                   "background-coloured parts of an object (0 = off)", low=0,
                                high=64)
-    grow_above: float = setting(0.9, "... where the objects' colours explain a pixel with at "
-                                     "least this posterior probability (equal priors)",
-                                low=0.5, high=1)
+    grow_above: float = setting(0.9, "a pixel joins a blob (grow_radius) where the objects' "
+                                     "colours explain it with at least this posterior "
+                                     "probability (equal priors)", low=0.5, high=1)
     hole_share: float = setting(0.5, "regions of the frame that the mask and the frame's edges "
                                      "enclose together, up to fill_holes pixels, are filled "
                                      "when the mask holds at least this share of their "
@@ -391,8 +392,8 @@ def _fill_holes(m: np.ndarray, max_area: int) -> None:
     """Set to 1, in place, the 0-regions of the 0/1 ``m`` ((H, W) uint8) that do not reach the
     border (4-connected), each of at most ``max_area`` pixels."""
     # Flood the background from a one-pixel frame around the image: what stays 0 is enclosed.
-    # (Three times cheaper than labelling the background, which only the rare case of more
-    # enclosed pixels than max_area in total needs.)
+    # (Cheaper than labelling the background, which only the rare case of more enclosed pixels
+    # than max_area in total needs.)
     flooded = cv2.copyMakeBorder(m, 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=0)
     cv2.floodFill(flooded, None, (0, 0), 1)
     holes = 1 - flooded[1:-1, 1:-1]

@@ -81,7 +81,7 @@ class SampleBackground:
         """``(H, W) uint8``: the ``min_matches``-th smallest distance of the ``(C, H, W)``
         planes ``f`` to the ``(N, C, H, W)`` ``samples``."""
         # The k smallest distances, kept sorted while the samples stream past: 2k whole-frame
-        # min/max per sample instead of a partition along the sample axis (~70x slower).
+        # min/max per sample instead of a partition along the sample axis, which is far slower.
         best = [np.full(f.shape[1:], 255, np.uint8) for _ in range(self.min_matches)]
         d = np.empty(f.shape[1:], np.uint8)
         tmp = np.empty_like(d)
@@ -126,8 +126,8 @@ class SampleBackground:
 
     def _put(self, f: np.ndarray, source: np.ndarray, target: np.ndarray) -> None:
         """Each pixel of ``f`` ((C, H, W) uint8) at the flat positions ``source`` ((K,) int)
-        replaces a random one of the samples at ``target``: one flat scatter per channel, under
-        half the time of an index that mixes a slice with arrays."""
+        replaces a random one of the samples at ``target``: one flat scatter per channel, cheaper
+        than an index that mixes a slice with arrays."""
         _, c, h, w = self.s.shape
         at = self.rng.integers(0, self.n, source.size) * (c * h * w) + target
         flat, planes = self.s.reshape(-1), f.reshape(c, -1)

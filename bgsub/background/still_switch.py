@@ -104,8 +104,8 @@ class StillCameraSwitch:
         snr = motion_snr(result)
         snrs = [v[1] for v in self._votes] + [snr]
         if fast_median(np.asarray(snrs[-self.window:], np.float64)) >= self.still_snr:
-            # A rigid motion: the camera moves whatever the sample model says. Not scoring it
-            # saves ~1 ms a frame; the frame counts as one the sample model does not explain.
+            # A rigid motion: the camera moves whatever the sample model says, so the frame is
+            # not scored, and counts as one the sample model does not explain.
             self._votes.append((1.0, snr, 1.0))
             self.camera_still = False
             return None

@@ -41,12 +41,13 @@ class EngineConfig:
                                   "by a guided filter with windows of this radius (working "
                                   "px), and scaled up to the input size along them (0 = the "
                                   "fused mask, scaled up bilinearly)", low=0, high=64)
-    edge_eps: float = setting(0.001, "... whose windows with a colour variance (values in "
-                                     "[0, 1]) well below this keep the fused mask's mean "
-                                     "rather than follow the frame's edges", above=0)
-    edge_step: int = setting(2, "... whose fit is made on the mask and frame shrunk by this "
-                                "factor and scaled back up (the fast guided filter: 2 fits "
-                                "a quarter of the pixels)", low=1, high=8)
+    edge_eps: float = setting(0.001, "guided-filter windows (edge_radius) whose colour "
+                                     "variance (values in [0, 1]) is well below this keep the "
+                                     "fused mask's mean rather than follow the frame's edges",
+                              above=0)
+    edge_step: int = setting(2, "the guided filter (edge_radius) is fitted on the mask and "
+                                "frame shrunk by this factor and scaled back up (the fast "
+                                "guided filter: 2 fits a quarter of the pixels)", low=1, high=8)
     threads: int = setting(1, "BLAS and OpenCV worker threads while a frame is processed (0 = "
                               "as configured; more threads are slower for these small frames)",
                            low=0)
@@ -67,23 +68,30 @@ class EngineConfig:
     min_contrast: float = setting(4.0, "frames whose gray standard deviation is below this are "
                                        "blank or textureless: empty mask, model kept", low=0)
     scene_cut: float = setting(0.5, "restart the model when more than this fraction of the "
-                                    "pixels with history differ from it ...", low=0, high=1)
-    cut_support: float = setting(0.35, "... while fewer than this fraction of the motion "
-                                       "vectors agree with the fitted motion (or more than 80 % "
-                                       "differ)", low=0, high=1)
+                                    "pixels with history differ from it while few motion "
+                                    "vectors agree with the fitted motion (cut_support)",
+                               low=0, high=1)
+    cut_support: float = setting(0.35, "a scene cut (scene_cut) needs fewer than this fraction "
+                                       "of the motion vectors to agree with the fitted motion "
+                                       "(more than 80 % of the pixels differing is a cut "
+                                       "whatever the motion)", low=0, high=1)
     still_model: float = setting(0.15, "take the camera as still, and use a never-warped sample "
                                        "background model (water, foam, leaves), while that "
                                        "model calls less than this fraction of the frame "
-                                       "foreground ... (0 = off)", low=0, high=1)
-    still_snr: float = setting(4.0, "... and the fitted camera motion is less than this many "
-                                    "times the scatter of the motion vectors about it (no "
-                                    "rigid motion stands out) ...", low=0)
-    still_versus: float = setting(4.0, "... and, where the compensated model is not blind, "
-                                       "at most this many times the fraction it calls, plus "
-                                       "0.5 % (a slow pan drifts the never-warped model's fine "
-                                       "texture into false foreground; 0 = no comparison) ...",
-                                  low=0)
-    still_window: int = setting(9, "... all as medians over this many frames", low=1)
+                                       "foreground and still_snr and still_versus agree "
+                                       "(0 = off)", low=0, high=1)
+    still_snr: float = setting(4.0, "the camera is taken as still (still_model) only while the "
+                                    "fitted camera motion is less than this many times the "
+                                    "scatter of the motion vectors about it (no rigid motion "
+                                    "stands out)", low=0)
+    still_versus: float = setting(4.0, "the camera is taken as still (still_model) only while "
+                                       "the sample model calls at most this many times the "
+                                       "fraction the compensated model calls, plus 0.5 %, "
+                                       "where that one is not blind (a slow pan drifts the "
+                                       "never-warped model's fine texture into false "
+                                       "foreground; 0 = no comparison)", low=0)
+    still_window: int = setting(9, "the still-camera tests (still_model, still_snr, "
+                                   "still_versus) are medians over this many frames", low=1)
     learning_rate: float = setting(LEARNING_RATE.default, LEARNING_RATE.help,
                                    high=LEARNING_RATE.high)
 

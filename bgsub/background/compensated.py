@@ -167,6 +167,23 @@ class CompensatedBackground:
         self.age = warp_image(self.age, matrix, (w, h), cv2.INTER_LINEAR, cv2.BORDER_CONSTANT)
         self.seen = warp_image(self.seen, matrix, (w, h), cv2.INTER_LINEAR, cv2.BORDER_CONSTANT)
 
+    def forget_partly_seen(self, matrix: np.ndarray) -> None:
+        """After a frozen model's :meth:`warp` by ``matrix`` (3, 3): pixels that the previous
+        frame saw only in part (their source lies beyond its border, filled by replicating the
+        edge) lose their history, so that :meth:`update` gives them this frame.
+
+        The warp interpolates the age, so a pixel half beyond the border inherits half of its
+        neighbour's: at 1 or more it would count as learnt, and a frozen model would keep the
+        replicated edge (streaks along the border the camera moves towards).
+        """
+        if self.age is None or np.array_equal(matrix, np.eye(3)):
+            return
+        h, w = self.age.shape
+        inside = cv2.warpPerspective(np.ones((h, w), np.float32), matrix, (w, h),
+                                     flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                                     borderValue=0)
+        self.age[inside < 0.999] = 0.0
+
     def score(self, frame: np.ndarray) -> np.ndarray:
         """How far ``frame`` is from the background, in units of the decision threshold.
 

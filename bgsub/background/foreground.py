@@ -69,12 +69,14 @@ class Foreground:
         self.lesson: Optional[Lesson] = None
 
     def compare(self, work: np.ndarray, prev: np.ndarray, result: MotionResult,
-                matrix: np.ndarray, *, warp: Callable[[], None], fixed: bool) -> Comparison:
+                matrix: np.ndarray, applied: np.ndarray, *, frozen: bool,
+                fixed: bool) -> Comparison:
         """The :class:`Comparison` of ``work`` (the frame, (h, w[, 3]) uint8; ``prev`` the
-        previous one) with the model once ``warp`` has moved it into the frame; the motion
-        evidence of ``result``'s vectors and of the frames, against the camera's ``matrix``
-        (3, 3), the vectors' with the fixed violation threshold when ``fixed`` (a refused
-        small region's vectors are one consistent motion, not noise about the camera's)."""
+        previous one) with the model warped by ``applied`` (3, 3; a ``frozen`` model is warped
+        sharp and forgets what the previous frame saw only in part); the motion evidence of
+        ``result``'s vectors and of the frames, against the camera's ``matrix`` (3, 3), the
+        vectors' with the fixed violation threshold when ``fixed`` (a refused small region's
+        vectors are one consistent motion, not noise about the camera's)."""
         image: list = []
 
         def evidence() -> None:
@@ -83,7 +85,9 @@ class Foreground:
 
         # The frames' evidence is the longer job: the vectors' map is made in this thread.
         with self.alongside(evidence):
-            warp()
+            self.bg.warp(applied, sharp=frozen)
+            if frozen:
+                self.bg.forget_partly_seen(applied)
             exposed, gain = self.exposure(work, self.bg)
             score = self.bg.score(exposed)
             vectors = self.fusion.vector_evidence(

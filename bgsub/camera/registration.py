@@ -11,7 +11,7 @@ import numpy as np
 from bgsub.camera.rules import largest_corner_shift, shift_of, translation
 from bgsub.motion.global_motion import fit_global_motion
 
-if TYPE_CHECKING:  # (the model is only read, and its age reset: no import of the stage)
+if TYPE_CHECKING:  # (the model is only read: the camera stage does not import the background)
     from bgsub.background.compensated import CompensatedBackground
 
 __all__ = ["FrozenModelRegistration"]
@@ -95,21 +95,3 @@ class FrozenModelRegistration:
         if not fit.ok or largest_corner_shift(fit.matrix, gray.shape) > self.max_correction:
             return None
         return fit.matrix
-
-    @staticmethod
-    def forget_unseen(model: CompensatedBackground, applied: np.ndarray) -> None:
-        """After a frozen ``model``'s warp by ``applied`` (3, 3): pixels that the previous
-        frame saw only in part (their source lies beyond its border, filled by replicating the
-        edge) lose their history, so that the model's update gives them this frame.
-
-        The warp interpolates the age, so a pixel half beyond the border inherits half of its
-        neighbour's: at 1 or more it would count as learnt, and a frozen model would keep the
-        replicated edge (streaks along the border the camera moves towards).
-        """
-        if model.age is None or np.array_equal(applied, np.eye(3)):
-            return
-        h, w = model.age.shape
-        inside = cv2.warpPerspective(np.ones((h, w), np.float32), applied, (w, h),
-                                     flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                                     borderValue=0)
-        model.age[inside < 0.999] = 0.0

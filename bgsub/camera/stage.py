@@ -89,14 +89,6 @@ class CameraStage:
             self.last_good = result.motion.matrix
         return CameraDecision(result, matrix, applied, status, refused)
 
-    def warp(self, model: Any, applied: np.ndarray, *, frozen: bool) -> None:
-        """Move the background ``model`` into the frame by ``applied`` (3, 3, the decision's);
-        a ``frozen`` one is warped sharp and forgets the pixels the previous frame saw only in
-        part (:meth:`FrozenModelRegistration.forget_unseen`)."""
-        model.warp(applied, sharp=frozen)
-        if frozen:
-            self.registration.forget_unseen(model, applied)
-
     def _matrix(self, result: MotionResult, refused: bool) -> Tuple[np.ndarray, str]:
         """``(matrix, status)``: the fit, or for a refused fit the last good motion (the
         identity when refused for its small region: the camera is taken as still)."""

@@ -244,9 +244,8 @@ class MovingCameraEngine(Engine):
         cur = self.frontend.frame_data(gray)
         seen = self.camera.decide(self._motion(cur, gray), gray, self.bg, frozen=frozen)
         prev.result = seen.result
-        compared = self.foreground.compare(
-            work, prev.work, seen.result, seen.matrix, fixed=seen.refused,
-            warp=lambda: self.camera.warp(self.bg, seen.applied, frozen=frozen))
+        compared = self.foreground.compare(work, prev.work, seen.result, seen.matrix,
+                                           seen.applied, frozen=frozen, fixed=seen.refused)
         if self.foreground.is_cut(compared, seen.result, self._region.unwatched):
             self._restart(work, gray, cur)
             self.last_status = SCENE_CUT

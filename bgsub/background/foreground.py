@@ -97,11 +97,13 @@ class Foreground:
         return Comparison(score=score, violation=self.fusion.combined(vectors, against),
                           along=along, exposed=exposed, gain=gain)
 
-    def is_cut(self, compared: Comparison, result: MotionResult,
-               unwatched: Callable[[np.ndarray], np.ndarray]) -> bool:
-        """Whether the frame starts a new shot (:class:`SceneCut`), over the pixels with
-        history that are watched (``unwatched`` adds the others to an (h, w) bool map)."""
-        young = unwatched(self.bg.age < self.bg.config.min_age)
+    def young(self) -> np.ndarray:
+        """``(h, w) bool``: the pixels without enough history to count in :meth:`is_cut`."""
+        return self.bg.age < self.bg.config.min_age
+
+    def is_cut(self, compared: Comparison, result: MotionResult, young: np.ndarray) -> bool:
+        """Whether the frame starts a new shot (:class:`SceneCut`), not counting the ``young``
+        pixels ((h, w) bool: :meth:`young`, and those outside a region of interest)."""
         return self.scene_cut.is_cut(compared.score, young, result)
 
     def decide(self, work: np.ndarray, gray: np.ndarray, result: MotionResult,

@@ -246,7 +246,8 @@ class MovingCameraEngine(Engine):
         prev.result = seen.result
         compared = self.foreground.compare(work, prev.work, seen.result, seen.matrix,
                                            seen.applied, frozen=frozen, fixed=seen.refused)
-        if self.foreground.is_cut(compared, seen.result, self._region.unwatched):
+        young = self._region.unwatched(self.foreground.young())
+        if self.foreground.is_cut(compared, seen.result, young):
             self._restart(work, gray, cur)
             self.last_status = SCENE_CUT
             return empty

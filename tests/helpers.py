@@ -9,6 +9,20 @@ import numpy as np
 import pytest
 
 
+def one_error_line(argv, capfd, *, code: int = 2) -> str:
+    """Run ``bgsub argv``; check its exit status and that stderr (every writer, native libraries
+    too: ``capfd`` captures the file descriptor) is exactly one ``bgsub: error:`` line; return
+    that line."""
+    from bgsub.cli import main
+
+    rc = main([str(a) for a in argv])
+    err = capfd.readouterr().err
+    assert rc == code, err
+    assert "Traceback" not in err
+    assert err.startswith("bgsub: error:") and err.count("\n") == 1, err
+    return err
+
+
 class OracleMatcher:
     """Exhaustive SSD block matching over integer shifts within +-max_disp (test double)."""
 

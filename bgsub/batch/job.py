@@ -169,6 +169,7 @@ def run_input(job: RunJob, should_stop: Optional[StopCheck] = None) -> JobResult
     """
     from bgsub.batch.threads import limit_opencv
     from bgsub.engines.threads import reuse_freed_memory
+    from bgsub.io.sink_base import stop_notes_muted
 
     limit_opencv(job.threads)
     reuse_freed_memory()  # (a worker process reads and writes frames as `bgsub run` does)
@@ -181,7 +182,8 @@ def run_input(job: RunJob, should_stop: Optional[StopCheck] = None) -> JobResult
     try:
         settings = job.settings()
         record.write(job.record, status="running", settings=settings, outputs=job.outputs)
-        result.frames = _process(job, loop_stats, should_stop, result.warnings)
+        with stop_notes_muted():  # (the batch's own line says what became of the input)
+            result.frames = _process(job, loop_stats, should_stop, result.warnings)
         record.write(job.record, status="complete", settings=settings, outputs=job.outputs,
                      frames=result.frames)
         result.status = DONE

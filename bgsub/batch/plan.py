@@ -61,9 +61,19 @@ class OutputLayout:
                 paths[kind] = str(Path(folder) / f"{name}{extension}")
         return paths
 
+    def flagged(self, name: str) -> Tuple[Tuple[str, str], ...]:
+        """``(option, path)`` of each output of the input named ``name``, ``-o`` first."""
+        flags = {"masks": "-o", **{kind: flag for kind, flag, _ in SIDE_OUTPUTS}}
+        return tuple((flags[kind], path) for kind, path in self.outputs(name).items())
+
+    @property
+    def record_folder(self) -> str:
+        """The folder of the completion records (in ``-o``)."""
+        return str(Path(self.folder) / RECORD_FOLDER)
+
     def record(self, name: str) -> str:
         """The completion record of the input named ``name``."""
-        return str(Path(self.folder) / RECORD_FOLDER / f"{name}.json")
+        return str(Path(self.record_folder) / f"{name}.json")
 
     def folders(self) -> Tuple[Tuple[str, str], ...]:
         """``(option, folder)`` of every output folder in use, ``-o`` first."""
@@ -75,7 +85,7 @@ class OutputLayout:
     def create_folders(self) -> None:
         """Create the output folders (and the record folder); :class:`OutputError` when one is
         a file or cannot be created."""
-        for flag, folder in self.folders() + (("-o", str(Path(self.folder) / RECORD_FOLDER)),):
+        for flag, folder in self.folders() + (("-o", self.record_folder),):
             path = Path(folder)
             if path.exists() and not path.is_dir():
                 raise OutputError(f"{folder}: {flag} of several inputs must be a folder, not a "

@@ -18,9 +18,11 @@ engine parameters given, the frame range and size, and the output paths. A rerun
   exist;
 * redoes an input whose record is ``running`` (a batch stopped while it ran: its outputs are
   partial) or complete but missing an output (one now asked for, or deleted);
-* refuses, without ``--overwrite``, an input whose complete record holds other settings (another
-  method, or an input changed since), or whose outputs exist with no record at all (not made by
-  a batch): replacing those would destroy results nothing can tell are stale.
+* keeps, without ``--overwrite``, the outputs of an input whose complete record holds other
+  settings (another method or parameter, or an input changed since): the input is skipped with
+  a reason that names what changed;
+* refuses, without ``--overwrite``, an input whose outputs exist with no record at all (not made
+  by a batch): replacing those would destroy results nothing can tell are stale.
 """
 
 from __future__ import annotations
@@ -28,12 +30,13 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import Any, Dict, Mapping, Optional, Tuple
+from typing import Any, Dict, List, Mapping, Optional, Tuple
 
 from bgsub.io.sinks import write_atomically
 
-#: What :func:`decide` tells the batch to do with an input.
-RUN, SKIP, REDO = "run", "skip", "redo"
+#: What :func:`decide` tells the batch to do with an input (KEEP: skip it, its complete outputs
+#: made with other settings kept).
+RUN, SKIP, REDO, KEEP = "run", "skip", "redo", "keep"
 
 
 def input_identity(path: str) -> Dict[str, Any]:
@@ -90,10 +93,34 @@ def _exists(path: str) -> bool:
     return location.is_file()
 
 
+def _changes(old: Any, new: Any, prefix: str = "") -> List[str]:
+    """``["stride 8 -> 12", ...]``: the settings that differ between two records' settings
+    (nested dictionaries flattened; the input's identity is one change)."""
+    if not (isinstance(old, dict) and isinstance(new, dict)):
+        return [] if old == new else [f"{prefix} {_shown(old)} -> {_shown(new)}"]
+    changes: List[str] = []
+    for key in sorted(set(old) | set(new), key=str):
+        if old.get(key) == new.get(key):
+            continue
+        if key == "input":
+            changes.append("the input changed since")
+        elif key in ("params", "source"):
+            changes += _changes(old.get(key) or {}, new.get(key) or {})
+        else:
+            changes += _changes(old.get(key), new.get(key), f"{prefix}.{key}" if prefix else key)
+    return changes
+
+
+def _shown(value: Any) -> str:
+    return "default" if value is None else str(value)
+
+
 def decide(record_path: str, *, settings: Mapping[str, Any], outputs: Mapping[str, str],
            overwrite: bool) -> Tuple[str, Optional[str]]:
-    """What to do with one input: ``(RUN | SKIP | REDO, None)``, or ``(RUN, reason)`` when it
-    must not run (outputs that are not this batch's to replace; ``reason`` is one line).
+    """What to do with one input: ``(RUN | SKIP | REDO, None)``; ``(KEEP, reason)`` for complete
+    outputs made with other settings (skipped; ``reason`` names the changes:
+    ``"made with other settings (stride 8 -> 12): --overwrite redoes it"``); or
+    ``(RUN, reason)`` when it must not run (outputs that are not this batch's to replace).
 
     ``REDO`` means the input's outputs are this batch's own and may be replaced.
     """
@@ -109,8 +136,9 @@ def decide(record_path: str, *, settings: Mapping[str, Any], outputs: Mapping[st
     if record.get("status") != "complete":
         return REDO, None
     if record.get("settings") != _plain(dict(settings)):
-        return RUN, (f"{existing[0] if existing else outputs['masks']} was made with other "
-                     "settings or from another version of the input (--overwrite redoes it)")
+        changes = ", ".join(_changes(record.get("settings"), _plain(dict(settings))))
+        return KEEP, (f"made with other settings{f' ({changes})' if changes else ''}: "
+                      "--overwrite redoes it")
     recorded = record.get("outputs") or {}
     if all(recorded.get(kind) == path and _exists(path) for kind, path in outputs.items()):
         return SKIP, None

@@ -14,7 +14,7 @@ import json
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Dict, Iterable, List, Mapping, Optional, Tuple
+from typing import Any, Callable, Dict, Iterable, List, Mapping, Tuple
 
 from bgsub.batch import record
 from bgsub.batch.inputs import BatchInput
@@ -56,21 +56,13 @@ class BatchReport:
         write_atomically(Path(path), data.encode("utf-8"), what="the batch summary")
 
 
-def _distinct_from_input(item: BatchInput, outputs: Mapping[str, str]) -> Optional[str]:
-    """Why the outputs of ``item`` must not be written (one of them is the input), or None."""
-    source = Path(item.path).resolve()
-    for path in outputs.values():
-        if Path(path).resolve() == source:
-            return f"{path} would overwrite the input"
-    return None
-
-
 def plan(items: Iterable[BatchInput], layout: OutputLayout, *, method: str,
          params: Mapping[str, Any], run_params: Mapping[str, Any],
          source: Mapping[str, Any], overwrite: bool, threads: int, progress: bool = False
          ) -> Tuple[List[RunJob], List[JobResult]]:
     """The jobs to run, and the results of the inputs that need none (complete outputs:
-    ``skipped``; outputs that are not the batch's to replace: ``failed``, with the reason).
+    ``skipped``, with the reason when they were made with other settings; outputs that are not
+    the batch's to replace: ``failed``, with the reason).
     ``progress``: the jobs show a bar over their frames (when they run in this process)."""
     jobs: List[RunJob] = []
     settled: List[JobResult] = []
@@ -78,18 +70,17 @@ def plan(items: Iterable[BatchInput], layout: OutputLayout, *, method: str,
         outputs = layout.outputs(item.name)
         job = RunJob(item.path, item.name, outputs, layout.record(item.name), method,
                      dict(params), dict(run_params), dict(source), overwrite, threads, progress)
-        refused = _distinct_from_input(item, outputs)
-        decision = record.RUN
-        if refused is None:
-            decision, refused = record.decide(job.record, settings=job.settings(),
-                                              outputs=outputs, overwrite=overwrite)
+        decision, refused = record.decide(job.record, settings=job.settings(),
+                                          outputs=outputs, overwrite=overwrite)
         if decision == record.SKIP and is_live(item.path):
+            decision = record.RUN
             refused = (f"{outputs['masks']} exists, and {item.path} is a live source, recorded "
                        "anew each time (--overwrite replaces it)")
-        if refused:
+        if decision in (record.SKIP, record.KEEP):
+            settled.append(JobResult(item.name, item.path, SKIPPED, outputs,
+                                     message=refused or ""))
+        elif refused:
             settled.append(JobResult(item.name, item.path, FAILED, outputs, message=refused))
-        elif decision == record.SKIP:
-            settled.append(JobResult(item.name, item.path, SKIPPED, outputs))
         else:
             jobs.append(RunJob(**{**job.__dict__, "overwrite": decision == record.REDO}))
     return jobs, settled
@@ -102,6 +93,9 @@ def outcome_result(job: RunJob, outcome: Any) -> JobResult:
     result = JobResult(job.name, job.input, FAILED, outputs=dict(job.outputs))
     if isinstance(outcome, BaseException) and type(outcome).__name__ == "CancelledError":
         result.status = NOT_STARTED
+    elif type(outcome).__name__ == "BrokenProcessPool":  # (a worker's death breaks the pool)
+        result.message = ("its worker process ended abruptly (killed, or out of memory), and "
+                          "the batch's other workers with it; a rerun of the batch redoes it")
     else:
         result.message = f"the worker running it failed: {type(outcome).__name__}: {outcome}"
     return result
@@ -144,15 +138,25 @@ def check_method(method: str, params: Mapping[str, Any], layout: OutputLayout) -
 
 
 def check_layout(layout: OutputLayout, items: List[BatchInput]) -> None:
-    """Refuse output folders that are input folders, or one folder for two side outputs of the
-    same extension."""
+    """Refuse output folders that are input folders or hold input videos (what is written
+    there would be read as inputs next time), one folder for two side outputs of the same
+    extension, and an input whose masks would go to the batch's record folder."""
     inputs = {Path(item.path).resolve() for item in items}
+    video_folders = {path.parent for path in inputs if path.is_file()}
     seen: Dict[Tuple[Path, str], str] = {}
     for flag, folder in layout.folders():
         resolved = Path(folder).resolve()
         if resolved in inputs:
             raise OutputError(f"{folder}: {flag} is an input folder; give another folder")
+        if resolved in video_folders:
+            raise OutputError(f"{folder}: {flag} is the folder of input videos; what is written "
+                              "there would be read as inputs next time (give another folder)")
         extension = {"--motion": ".npy", "-o": f".{layout.mask_format}"}.get(flag, ".mp4")
         if (resolved, extension) in seen:
             raise OutputError(f"{folder}: given to both {seen[resolved, extension]} and {flag}")
         seen[resolved, extension] = flag
+    records = Path(layout.record_folder).resolve()
+    for item in items:
+        if Path(layout.outputs(item.name)["masks"]).resolve() == records:
+            raise OutputError(f"{item.path}: its masks would go to {records}, the batch's own "
+                              "record folder; rename the input, or give another --mask-format")

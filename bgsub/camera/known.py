@@ -27,12 +27,22 @@ def _load_motion(path: str) -> np.ndarray:
     if not os.path.isfile(path):
         what = "is a folder" if os.path.isdir(path) else "no such file"
         raise InputError(f"{path}: {what} (the known camera motion, an .npy file)")
+    expected = ("the known camera motion is an (N, 3, 3) float array saved by numpy.save as "
+                "an .npy file, without pickled objects, as bgsub run --motion writes it")
     try:
-        return np.load(path, allow_pickle=False)
-    except (OSError, ValueError, EOFError) as err:
-        raise InputError(f"{path}: cannot read the known camera motion as an .npy array "
+        with open(path, "rb") as fh:
+            magic = fh.read(6)
+        if magic != b"\x93NUMPY":
+            what = "an .npz archive" if magic[:2] == b"PK" else "not an .npy file"
+            raise InputError(f"{path}: {what}; {expected}")
+        array = np.load(path, allow_pickle=False)
+    except (OSError, EOFError) as err:
+        raise InputError(f"{path}: cannot read the known camera motion "
                          f"({str(err).splitlines()[0] if str(err) else type(err).__name__})"
                          ) from None
+    except ValueError:  # pickled objects, or a damaged header
+        raise InputError(f"{path}: not a plain numeric .npy array; {expected}") from None
+    return array
 
 
 class KnownMotion:

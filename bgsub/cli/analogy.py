@@ -68,9 +68,10 @@ def _read_gray(path: str):
     import numpy as np
 
     from bgsub.io.flowio import check_image_file
+    from bgsub.io.sources import read_image_quietly
 
     check_image_file(path)
-    image = cv2.imread(path, cv2.IMREAD_GRAYSCALE)
+    image = read_image_quietly(path, cv2.IMREAD_GRAYSCALE)
     if image is None:
         raise InputError(f"cannot read image {path}")
     return image.astype(np.float32) / 255.0

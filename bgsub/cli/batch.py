@@ -11,6 +11,7 @@ import argparse
 import os
 import sys
 import time
+from pathlib import Path
 from typing import Any, Optional
 
 from bgsub.errors import InputError, OutputError
@@ -51,7 +52,7 @@ def add_batch_options(parser: argparse.ArgumentParser) -> None:
     add_parallel_options(parser)
     group = parser._action_groups[-1]
     group.description = _BATCH_HELP
-    group.add_argument("--mask-format", choices=MASK_FORMATS, default="mkv",
+    group.add_argument("--mask-format", choices=MASK_FORMATS, default=None,
                        help="what each input's masks are in a batch: a video of this type, or "
                             "png for a folder of binNNNNNN.png (default: mkv)")
     group.add_argument("--summary", default=None, metavar="FILE.json",
@@ -94,7 +95,8 @@ def _layout(args: argparse.Namespace) -> Any:
         if path and path.lower().endswith((".mp4", ".avi", ".mkv", ".mov", ".npy")):
             raise OutputError(f"{path}: {flag} of several inputs is a folder (one file per "
                               "input, named after it)")
-    return OutputLayout(args.output, args.mask_format, args.vis, args.flow_vis, args.motion)
+    return OutputLayout(args.output, args.mask_format or "mkv", args.vis, args.flow_vis,
+                        args.motion)
 
 
 def _say(bar: Any, message: str) -> None:
@@ -133,55 +135,114 @@ def _source(args: argparse.Namespace) -> dict:
     return source
 
 
-def run_batch(args: argparse.Namespace, *, method: str, params: dict) -> int:
-    """``bgsub run`` with several inputs; the exit status."""
-    from tqdm import tqdm
-
-    from bgsub.batch import executors, inputs, runner, threads
-    from bgsub.batch.job import FAILED, INTERRUPTED, run_input
+def _prepare(args: argparse.Namespace, *, method: str, params: dict, reads: list) -> tuple:
+    """``(items, layout, jobs, threads per job)`` of a batch, every option and output checked
+    and nothing created yet. ``reads``: the files every input's run reads besides the input
+    (``--roi``, ``--config``, a model file), which no output may replace."""
+    from bgsub.batch import inputs, runner
     from bgsub.cli import common
 
-    for_workers(args, "input", "output", "vis", "flow_vis", "motion")
+    for_workers(args, "input", "output", "vis", "flow_vis", "motion", "summary")
     items = inputs.expand(args.input)
     layout = _layout(args)
     jobs, per_job = jobs_and_threads(args)
     runner.check_layout(layout, items)
+    outputs = [(flag, path) for item in items for flag, path in layout.flagged(item.name)]
+    common.check_distinct([item.path for item in items] + reads,
+                          outputs + [("--summary", args.summary)])
     runner.check_method(method, params, layout)
-    layout.create_folders()
+    if args.summary:
+        check_summary(args.summary, layout, overwrite=args.overwrite)
+    return items, layout, jobs, per_job
+
+
+def check_summary(path: str, layout: Any, *, overwrite: bool) -> None:
+    """Refuse a ``--summary`` file that exists (without ``overwrite``) or cannot be written;
+    its folder may be one of the batch's output folders, which the batch creates."""
+    from bgsub.io.outputs import check_file_output, check_new_folder, output_path
+
+    output = output_path(path)
+    if output.exists() and not overwrite:
+        raise OutputError(f"{output}: already exists (--overwrite replaces it, and redoes every "
+                          "input; or give another --summary name)")
+    folder = output.parent.resolve()
+    if not folder.exists() and folder in {Path(f).resolve() for _, f in layout.folders()}:
+        check_new_folder(folder, output)
+    else:
+        check_file_output(output, overwrite=overwrite)
+
+
+def _result_line(result: Any) -> Optional[str]:
+    """The one line an input's result gets while the batch runs, or None (done, or skipped
+    as complete)."""
+    from bgsub.batch.job import FAILED, INTERRUPTED, NOT_STARTED, SKIPPED
+    from bgsub.io.outputs import frames_text
+
+    if result.status == FAILED:
+        return _failure_line(result)
+    if result.status == SKIPPED and result.message:
+        return f"{result.name}: {result.message}"
+    if result.status == INTERRUPTED and result.frames:
+        return (f"{result.name}: interrupted after {frames_text(result.frames)}, its outputs "
+                "partial but valid; a rerun of the batch redoes it")
+    if result.status == INTERRUPTED:
+        return f"{result.name}: interrupted before its first frame; a rerun of the batch does it"
+    if result.status == NOT_STARTED:
+        return f"{result.name}: not started (the batch was stopped); a rerun of the batch does it"
+    return None
+
+
+def _report_result(bar: Any, result: Any) -> None:
+    line = _result_line(result)
+    if line:
+        _say(bar, line)
+    for warning in result.warnings:  # (most name the input already)
+        named = warning if warning.startswith(result.input) else f"{result.input}: {warning}"
+        _say(bar, f"warning: {named}")
+
+
+def run_batch(args: argparse.Namespace, *, method: str, params: dict, reads: list) -> int:
+    """``bgsub run`` with several inputs; the exit status. Nothing is created before every
+    option, output and the executor (a Dask scheduler) has been checked."""
+    from tqdm import tqdm
+
+    from bgsub.batch import executors, runner, threads
+    from bgsub.batch.job import INTERRUPTED, run_input
+    from bgsub.cli import common
+
+    items, layout, jobs, per_job = _prepare(args, method=method, params=params, reads=reads)
     run_params = {k: v for k, v in threads.engine_params(method, params, threads=per_job).items()
                   if k not in params}
-    todo, settled = runner.plan(items, layout, method=method, params=params,
-                                run_params=run_params, source=_source(args),
-                                overwrite=args.overwrite, threads=per_job,
-                                progress=jobs == 1 and not args.scheduler and not args.quiet)
-    results = {result.name: result for result in settled}
-    bar = tqdm(total=len(items), initial=len(settled), unit="input", desc=method,
-               file=sys.stderr, disable=args.quiet or not sys.stderr.isatty(), leave=False)
-    for result in settled:
-        if result.status == FAILED:
-            _say(bar, _failure_line(result))
-
-    def on_outcome(job: Any, outcome: Any) -> bool:
-        result = runner.outcome_result(job, outcome)
-        results[job.name] = result
-        bar.update(1)
-        if result.status == FAILED:
-            _say(bar, _failure_line(result))
-        for warning in result.warnings:
-            _say(bar, f"warning: {job.input}: {warning}")
-        return result.status == INTERRUPTED
-
     started = time.perf_counter()
     executor = executors.make_executor(jobs=jobs, threads=per_job, scheduler=args.scheduler)
-    with bar, executor:
-        interrupted = runner.execute(executor, run_input, todo, on_outcome=on_outcome)
+    with executor:
+        layout.create_folders()
+        todo, settled = runner.plan(items, layout, method=method, params=params,
+                                    run_params=run_params, source=_source(args),
+                                    overwrite=args.overwrite, threads=per_job,
+                                    progress=jobs == 1 and not args.scheduler and not args.quiet)
+        results = {result.name: result for result in settled}
+        bar = tqdm(total=len(items), initial=len(settled), unit="input", desc=method,
+                   file=sys.stderr, disable=args.quiet or not sys.stderr.isatty(), leave=False)
+        for result in settled:
+            _report_result(bar, result)
+
+        def on_outcome(job: Any, outcome: Any) -> bool:
+            result = runner.outcome_result(job, outcome)
+            results[job.name] = result
+            bar.update(1)
+            _report_result(bar, result)
+            return result.status == INTERRUPTED
+
+        with bar:
+            interrupted = runner.execute(executor, run_input, todo, on_outcome=on_outcome)
     settings = {"method": method, "params": params, "jobs": jobs, "threads_per_job": per_job,
                 "scheduler": args.scheduler}
     report = runner.BatchReport([results[item.name] for item in items], interrupted, settings)
-    if args.summary:
-        report.write_json(args.summary)
     common.note(_closing_line(report, time.perf_counter() - started, args.output),
                 quiet=args.quiet and report.ok)
+    if args.summary:  # (after the closing line: a full disk may refuse it)
+        report.write_json(args.summary)
     if interrupted:
         raise KeyboardInterrupt
     return 0 if report.ok else 1
@@ -194,14 +255,13 @@ def is_batch(args: argparse.Namespace) -> bool:
     return inputs.is_batch(args.input)
 
 
-def dispatch(args: argparse.Namespace, *, method: str, params: dict) -> Optional[int]:
+def dispatch(args: argparse.Namespace, *, method: str, params: dict,
+             reads: Optional[list] = None) -> Optional[int]:
     """Run a batch when ``args.input`` (a list) makes one and return its exit status; else set
-    ``args.input`` to the one input and return None (a single run)."""
+    ``args.input`` to the one input and return None (a single run). ``reads``: the files a run
+    reads besides its input (see :func:`run_batch`)."""
     from bgsub.batch import inputs
-    from bgsub.io.sinks import check_file_output
 
-    if args.summary:
-        check_file_output(args.summary, overwrite=True)
     if inputs.is_batch(args.input):
         for flag, value in (("--objects", getattr(args, "objects", None)),
                             ("--json", getattr(args, "json", False))):
@@ -211,10 +271,17 @@ def dispatch(args: argparse.Namespace, *, method: str, params: dict) -> Optional
         if getattr(args, "codec", "auto") != "auto":
             raise InputError("--codec is for a single input; a batch writes its .mp4 videos "
                              "in H.264 when PyAV is installed, else in mp4v")
-        return run_batch(args, method=method, params=params)
-    for flag, value in (("--scheduler", args.scheduler), ("--summary", args.summary)):
+        return run_batch(args, method=method, params=params, reads=list(reads or []))
+    for flag, value in (("--scheduler", args.scheduler), ("--summary", args.summary),
+                        ("--mask-format", args.mask_format)):
         if value:
             raise InputError(f"{flag} is for several inputs (a batch); give more than one "
-                             "input, or a folder or glob of videos")
+                             "input, or a folder or glob of videos" + _SINGLE_HINTS.get(flag, ""))
+    if args.jobs is not None:
+        jobs_and_threads(args)  # (a single input runs in this process: only checked)
     args.input = args.input[0]
     return None
+
+
+_SINGLE_HINTS = {"--mask-format": " (a single input's -o names the format: masks.mkv, or "
+                                  "masks/ for binNNNNNN.png)"}

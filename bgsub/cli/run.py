@@ -122,13 +122,15 @@ def _method(name: Optional[str]) -> str:
     return name
 
 
-def _check_outputs(args: argparse.Namespace, source: FrameSource) -> None:
-    """Refuse bad outputs before any frame is processed."""
+def _check_outputs(args: argparse.Namespace, source: FrameSource, reads: list) -> None:
+    """Refuse bad outputs before any frame is processed; ``reads``: the files the run reads
+    besides its input (:func:`run_inputs.input_files`)."""
     outputs = [("-o", args.output), ("--vis", args.vis), ("--flow-vis", args.flow_vis),
                ("--motion", args.motion), ("--objects", args.objects)]
     outputs = [(flag, path) for flag, path in outputs if path]
-    # First: "-" and the input's own folder are refused whether or not they look writable.
-    common.check_distinct([args.input], outputs, input_folders=source.folders)
+    # First: "-", an input and the input's own folder are refused whether or not they look
+    # writable, --overwrite or not.
+    common.check_distinct([args.input] + reads, outputs, input_folders=source.folders)
     check_mask_output(args.output, overwrite=args.overwrite)
     for flag, path in outputs[1:]:
         if flag == "--motion":
@@ -248,7 +250,7 @@ def _open_input(args: argparse.Namespace, params: dict) -> tuple:
     source = open_source(args.input, **common.source_kwargs(args),
                          stall_seconds=args.stall_timeout)
     try:
-        _check_outputs(args, source)
+        _check_outputs(args, source, run_inputs.input_files(args, params))
         params = run_inputs.check_inputs(params, width=source.info.width,
                                          height=source.info.height)
     except BaseException:
@@ -274,10 +276,11 @@ def run(args: argparse.Namespace) -> int:
     run_inputs.apply_max_frames(args)
     if args.motion_in and batch.is_batch(args):
         raise InputError("--motion-in is for a single input (a camera motion is one video's)")
-    status = batch.dispatch(args, method=method, params=params)  # several inputs
+    tracking = run_extras.tracker_config(args)
+    status = batch.dispatch(args, method=method, params=params,  # several inputs
+                            reads=run_inputs.input_files(args, params))
     if status is not None:
         return status
-    tracking = run_extras.tracker_config(args)
     source, params = _open_input(args, params)
     info = source.info
     engine = engines.create_engine(method, **params)

@@ -5,7 +5,8 @@
 from __future__ import annotations
 
 import argparse
-from typing import Any, Dict, Optional
+import os
+from typing import Any, Dict, List, Optional
 
 from bgsub.errors import InputError
 
@@ -69,6 +70,20 @@ def engine_params(args: argparse.Namespace, method: str, params: Dict[str, Any])
     return params
 
 
+def input_files(args: argparse.Namespace, params: Dict[str, Any]) -> List[str]:
+    """The files a run reads besides its input (``--config``, and the model, region of
+    interest and known camera motion when given as files): no output may replace them."""
+    from bgsub.cli.common import model_files
+
+    files = [args.config] if args.config else []
+    model = params.get("model")
+    if isinstance(model, str):
+        files += model_files(model)
+    files += [params[name] for name in ("roi", "known_motion")
+              if isinstance(params.get(name), (str, os.PathLike))]
+    return files
+
+
 def check_inputs(params: Dict[str, Any], *, width: int, height: int) -> Dict[str, Any]:
     """``params`` with the region of interest and the known camera motion read now (the region
     also scaled to ``width`` x ``height`` frames), so a bad file stops the run before any frame
@@ -84,7 +99,31 @@ def check_inputs(params: Dict[str, Any], *, width: int, height: int) -> Dict[str
         from bgsub.camera.known import KnownMotion  # (a moving-camera engine's)
 
         params["known_motion"] = KnownMotion.from_value(params["known_motion"])
+        check_motion_size(params["known_motion"], width=width, height=height)
     return params
+
+
+def check_motion_size(known: Any, *, width: int, height: int) -> None:
+    """Refuse a known camera motion (a :class:`~bgsub.camera.KnownMotion`) with an entry
+    that moves a corner of ``width`` x ``height`` frames by more than the frame's size: no
+    camera moves that far between two frames, and every mask would be empty."""
+    import numpy as np
+
+    corners = np.array([[0, 0, 1], [width - 1, 0, 1], [0, height - 1, 1],
+                        [width - 1, height - 1, 1]], np.float64).T
+    with np.errstate(all="ignore"):
+        moved = np.einsum("nij,jk->nik", np.nan_to_num(known.matrices), corners)
+        shift = np.abs(moved[:, :2] / moved[:, 2:] - corners[None, :2])
+    fits = (shift[:, 0] <= width).all(axis=1) & (shift[:, 1] <= height).all(axis=1)
+    unknown = np.isnan(known.matrices).all(axis=(1, 2))
+    bad = np.flatnonzero(~fits & ~unknown)
+    if len(bad):
+        entry = int(bad[0])
+        largest = float(np.nanmax(np.where(np.isfinite(shift[entry]), shift[entry], np.inf)))
+        raise InputError(f"{known.name}: entry {entry} moves a corner of the {width}x{height} "
+                         f"frame by {largest:.4g} px, more than the frame's size: not a camera "
+                         "motion between two frames (give --motion-in an (N, 3, 3) array of "
+                         "frame-to-frame motions, as --motion writes it)")
 
 
 def motion_note(engine: Any) -> Optional[str]:

@@ -15,6 +15,7 @@ import numpy as np
 
 from bgsub.errors import InputError
 from bgsub.evaluation.metrics import frame_size
+from bgsub.io.sources import read_image_quietly
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -28,7 +29,7 @@ def is_sequence(path: PathLike) -> bool:
 
 def _read_labels(path: Path) -> np.ndarray:
     """Read one ground-truth png as ``(H, W) uint8`` labels (equal-channel colour accepted)."""
-    image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    image = read_image_quietly(path, cv2.IMREAD_UNCHANGED)
     if image is None:
         raise InputError(f"cannot read ground-truth image {path}")
     if image.dtype != np.uint8:
@@ -202,7 +203,7 @@ def open_ground_truth(path: PathLike, *, ignore_roi_bmp: bool = False) -> Ground
         if ignore_roi_bmp:
             notes.append("ROI.bmp ignored")
         else:
-            image = cv2.imread(str(roi_path), cv2.IMREAD_GRAYSCALE)
+            image = read_image_quietly(roi_path, cv2.IMREAD_GRAYSCALE)
             if image is None:
                 raise InputError(f"cannot read {roi_path} (pass --no-roi-bmp to ignore it)")
             if image.shape != (height, width):

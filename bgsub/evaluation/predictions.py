@@ -17,7 +17,7 @@ import numpy as np
 
 from bgsub.errors import InputError
 from bgsub.evaluation.groundtruth import GroundTruth
-from bgsub.io.sources import VIDEO_SUFFIXES, open_source
+from bgsub.io.sources import VIDEO_SUFFIXES, open_source, read_image_quietly
 
 #: Mask-video extensions recognised when looking for a sequence's prediction in a dataset, in
 #: that order: :data:`bgsub.io.sources.VIDEO_SUFFIXES` (one list for every module that names videos).
@@ -276,7 +276,7 @@ class MaskFolderReader(PredictionReader):
             path = self.files.get(number)
             if path is None:
                 continue
-            mask = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+            mask = read_image_quietly(path, cv2.IMREAD_GRAYSCALE)
             if mask is None:
                 raise InputError(f"cannot read predicted mask {path}")
             yield number, mask

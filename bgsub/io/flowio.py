@@ -65,7 +65,7 @@ def read_flo(path: PathLike) -> np.ndarray:
         raise InputError(f"not a .flo file (only {len(raw)} bytes, header needs 12): {p}")
     tag = np.frombuffer(raw, dtype="<f4", count=1)[0]
     if tag != FLO_TAG:
-        raise InputError(f"not a .flo file (tag {tag!r}, expected 202021.25): {p}")
+        raise InputError(f"not a .flo file (tag {float(tag):g}, expected 202021.25): {p}")
     width, height = (int(v) for v in np.frombuffer(raw, dtype="<i4", count=2, offset=4))
     if not (0 < width <= _MAX_SIDE and 0 < height <= _MAX_SIDE):
         raise InputError(f"corrupt .flo header (size {width}x{height}): {p}")

@@ -285,12 +285,17 @@ def check_mask_output(path: PathLike, *, overwrite: bool = False) -> Path:
                               "to replace them")
         check_writable_folder(output, output)
     else:
-        ancestor = output.parent
-        while not ancestor.exists() and ancestor != ancestor.parent:
-            ancestor = ancestor.parent
-        check_writable_folder(ancestor, output)
+        check_new_folder(output, output)
     return output
 
+
+def check_new_folder(folder: Path, output: Path) -> None:
+    """Check that the missing ``folder`` can be created for ``output``: its nearest existing
+    ancestor is a writable folder (:class:`OutputError` naming ``output`` otherwise)."""
+    ancestor = folder.parent
+    while not ancestor.exists() and ancestor != ancestor.parent:
+        ancestor = ancestor.parent
+    check_writable_folder(ancestor, output)
 
 
 def check_motion_output(path: PathLike, *, overwrite: bool = False) -> Path:

@@ -3,11 +3,13 @@ left in the output) and the checks of what is written to it."""
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import math
 import numbers
 from abc import ABC, abstractmethod
 from pathlib import Path
-from typing import Any, Optional, Tuple
+from typing import Any, Iterator, Optional, Tuple
 
 import numpy as np
 
@@ -19,6 +21,20 @@ def stop_reason(exc_type: Optional[type]) -> str:
     """How a sink's message names what stopped the run of an exception of ``exc_type``."""
     return "interrupted" if exc_type is not None and issubclass(exc_type, KeyboardInterrupt) \
         else "stopped by an error"
+
+
+_stop_notes_muted = contextvars.ContextVar("bgsub_stop_notes_muted", default=False)
+
+
+@contextlib.contextmanager
+def stop_notes_muted() -> Iterator[None]:
+    """Inside the ``with`` block, sinks stopped by an interruption or an error do not say what
+    they hold: a batch reports each input in one line of its own instead."""
+    token = _stop_notes_muted.set(True)
+    try:
+        yield
+    finally:
+        _stop_notes_muted.reset(token)
 
 
 def check_image(image: np.ndarray, *, ndims: Tuple[int, ...], what: str) -> None:
@@ -105,7 +121,8 @@ class Sink(ABC):
         interrupted = isinstance(error, KeyboardInterrupt)
         # A sink that never got a frame because opening a later output failed stays silent: the
         # error itself is the one line the user needs.
-        if error is not None and (self.frames_written or interrupted) and not self._told():
+        if error is not None and (self.frames_written or interrupted) and not self._told() \
+                and not _stop_notes_muted.get():
             say(self._partial_message(stop_reason(type(error)), complete=complete))
 
     def _told(self) -> bool:

@@ -162,6 +162,19 @@ _native_lock = threading.Lock()
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
+def read_image_quietly(path: Any, flags: int = cv2.IMREAD_COLOR) -> Optional[np.ndarray]:
+    """``cv2.imread(path, flags)`` without OpenCV's or libpng's own lines on stderr (the
+    caller reports a failure in its own line): None when the file cannot be read or decoded."""
+    try:
+        data = np.fromfile(os.fspath(path), dtype=np.uint8)  # (+ imdecode: any path encoding)
+    except (OSError, ValueError):
+        return None
+    if not data.size:
+        return None
+    with quiet_opencv(), _native_stderr_muted(data):
+        return cv2.imdecode(data, flags)
+
+
 def decode_image(data: np.ndarray, *, name: str) -> Optional[np.ndarray]:
     """An image file's bytes ``(N,) uint8`` decoded as ``(H, W, 3) uint8`` BGR (what
     ``cv2.IMREAD_COLOR`` gives: gray expanded, alpha dropped, 16 bits scaled to 8), without

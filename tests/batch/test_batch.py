@@ -112,10 +112,11 @@ def test_outputs_made_otherwise_are_not_replaced_without_overwrite(tmp_path):
 def test_other_settings_are_not_taken_for_complete(tmp_path):
     job = _job(write_clip(tmp_path / "v.mkv"), tmp_path / "out")
     run_input(job)
-    other = RunJob(**{**job.__dict__, "params": {"history": 50}})
-    decision, reason = record.decide(other.record, settings=other.settings(),
-                                     outputs=other.outputs, overwrite=False)
-    assert "other settings" in reason
+    other = RunJob(**{**job.__dict__, "params": {"history": 50}, "source": {"step": 2}})
+    assert record.decide(other.record, settings=other.settings(), outputs=other.outputs,
+                         overwrite=False) == (
+        record.KEEP, "made with other settings (history default -> 50, step default -> 2): "
+                     "--overwrite redoes it")
 
 
 def test_plan_skips_complete_inputs_and_runs_the_rest(tmp_path):

@@ -104,9 +104,16 @@ def test_ctrl_c_stops_the_batch_and_a_rerun_finishes_it(tmp_path, clips, capsys)
                      "at=99", "--jobs", "1")
     assert code == 0, err
     assert all(len(_masks(out / f"{clip.stem}.mkv")) == N for clip in clips)
-    # Complete outputs made with other settings are not taken for this run's.
+    # Complete outputs made with other settings are not taken for this run's: kept, and each
+    # input reported as a skip that names the change.
+    before = [(out / f"{clip.stem}.mkv").read_bytes() for clip in clips]
     code, err = _run(capsys, *clips, "-o", out, "--method", "mog2", "--jobs", "1")
-    assert code == 1 and err.count("other settings") == 3
+    assert code == 0, err
+    assert err.splitlines()[:3] == [
+        f"bgsub: {clip.stem}: made with other settings (method _test_batch_ctrl_c -> mog2, at 99 "
+        "-> default): --overwrite redoes it" for clip in clips]
+    assert "3 skipped" in err.splitlines()[-1]
+    assert [(out / f"{clip.stem}.mkv").read_bytes() for clip in clips] == before
 
 
 def test_a_rerun_redoes_only_what_is_not_complete(tmp_path, clips, capsys):
@@ -158,6 +165,47 @@ def test_summary_is_for_batches(tmp_path, clips, bgsub_error):
     assert "--summary is for several inputs" in err
 
 
+def test_a_summary_in_the_batch_s_own_output_folder(tmp_path, clips, capsys):
+    out = tmp_path / "out"
+    code, err = _run(capsys, *clips, "-o", out, "--method", "mog2", "--jobs", "1",
+                     "--summary", out / "s.json")
+    assert code == 0, err
+    assert json.loads((out / "s.json").read_text())["counts"] == {"done": 3}
+
+
+def test_an_existing_summary_needs_overwrite(tmp_path, clips, capsys, bgsub_error):
+    summary = tmp_path / "s.json"
+    summary.write_text("mine\n")
+    err = bgsub_error(["run", *clips, "-o", tmp_path / "out", "--method", "mog2",
+                       "--summary", summary])
+    assert f"{summary}: already exists (--overwrite replaces it" in err
+    assert summary.read_text() == "mine\n" and not (tmp_path / "out").exists()
+    code, err = _run(capsys, *clips, "-o", tmp_path / "out", "--method", "mog2", "--jobs", "1",
+                     "--summary", summary, "--overwrite")
+    assert code == 0 and json.loads(summary.read_text())["counts"] == {"done": 3}
+
+
+def test_a_truncated_input_s_warning_names_it_once(tmp_path, clips, capsys):
+    data = clips[1].read_bytes()
+    cut = tmp_path / "clips" / "cut.mkv"
+    cut.write_bytes(data[: len(data) // 2])  # its header still declares every frame
+    code, err = _run(capsys, clips[0], cut, "-o", tmp_path / "out", "--method", "mog2",
+                     "--jobs", "1")
+    assert code == 0, err
+    warnings = [line for line in err.splitlines() if "warning" in line]
+    assert len(warnings) == 1 and warnings[0].count(str(cut)) == 1, err
+    assert warnings[0].startswith(f"bgsub: warning: {cut} ended after ")
+
+
+def test_an_input_named_like_the_record_folder_is_refused(tmp_path, clips, bgsub_error):
+    odd = tmp_path / "clips" / ".bgsub-batch.mkv"
+    odd.write_bytes(clips[0].read_bytes())
+    err = bgsub_error(["run", odd, clips[1], "-o", tmp_path / "out", "--method", "mog2",
+                       "--mask-format", "png"])
+    assert "the batch's own record folder" in err
+    assert not (tmp_path / "out").exists()
+
+
 def test_without_dask_the_scheduler_option_names_the_extra(tmp_path, clips):
     code = ("import sys; sys.modules['distributed'] = None\n"
             "from bgsub.cli import main\n"
@@ -167,6 +215,7 @@ def test_without_dask_the_scheduler_option_names_the_extra(tmp_path, clips):
     assert done.returncode == 2
     assert done.stderr.strip().splitlines() == [
         "bgsub: error: --scheduler needs Dask's distributed client: pip install 'bgsub[dask]'"]
+    assert not (tmp_path / "out").exists()  # a refused batch creates nothing
 
 
 def test_a_batch_on_a_dask_cluster(tmp_path, clips, capsys):

@@ -17,6 +17,7 @@ import pytest
 from bgsub.cli import main
 from bgsub.io.flowio import read_flo
 from bgsub.model.rbm import FORMAT_VERSION, load_model
+from helpers import one_error_line, write_bins, write_input_sequence
 
 W, H, FRAMES = 64, 48, 5
 LONG_NAME = "x" * 300  # longer than any file system's 255-byte names
@@ -61,6 +62,9 @@ def corpus(tmp_path_factory) -> Path:
     # A PNG whose compressed data is damaged: libpng prints "libpng error: ..." itself.
     (root / "corrupt.png").write_bytes(good_png[:60] + b"\0" * 50 + good_png[110:])
     (root / "truncated.png").write_bytes(good_png[: len(good_png) // 2])
+    # Cut in its last chunk ("libpng error: Read Error"), or in its header (OpenCV's log line).
+    (root / "truncated_end.png").write_bytes(good_png[:-20])
+    (root / "truncated_header.png").write_bytes(good_png[:16])
     (root / "empty.png").write_bytes(b"")
     (root / "text.png").write_text("not an image\n")
     ok, jpeg = cv2.imencode(".jpg", big)
@@ -73,7 +77,21 @@ def corpus(tmp_path_factory) -> Path:
     (root / "no_images").mkdir()
     (root / "no_images" / "notes.txt").write_text("no frames here\n")
     _models(root)
+    _sequences(root)
     return root
+
+
+def _sequences(root: Path) -> None:
+    """CDnet sequences with a damaged ground-truth PNG (libpng prints its own error line) or a
+    damaged ROI.bmp (OpenCV logs one), and masks to score against them."""
+    damaged = write_input_sequence(root / "gt_corrupt", n_frames=3)
+    gt = damaged / "groundtruth" / "gt000002.png"
+    data = gt.read_bytes()
+    gt.write_bytes(data[:60] + b"\0" * 50 + data[110:])
+    roi = write_input_sequence(root / "roi_corrupt", n_frames=3,
+                               roi=np.full((48, 64), 255, np.uint8))
+    (roi / "ROI.bmp").write_bytes((roi / "ROI.bmp").read_bytes()[:40])
+    write_bins(root / "preds", {k: np.zeros((48, 64), np.uint8) for k in (1, 2, 3)})
 
 
 def _models(root: Path) -> None:
@@ -92,17 +110,6 @@ def _models(root: Path) -> None:
     np.savez(root / "objects.npz", wxf=np.array([{"a": 1}], dtype=object))
 
 
-def _one_error_line(argv, capfd, *, code: int = 2) -> str:
-    """Run ``bgsub argv``; check its exit status and that stderr (every writer, native
-    libraries too) is exactly one ``bgsub: error:`` line; return that line."""
-    rc = main([str(a) for a in argv])
-    err = capfd.readouterr().err
-    assert rc == code, err
-    assert "Traceback" not in err
-    assert err.startswith("bgsub: error:") and err.count("\n") == 1, err
-    return err
-
-
 # (argv with {c} for the corpus folder and {t} for this test's own folder, words the line
 # must hold). Outputs go to {t} so that no case sees another's.
 CASES = [
@@ -116,6 +123,16 @@ CASES = [
     (["flow", "{c}/int32.tiff", "{c}/int32.tiff", "-o", "{t}/f.flo"], "int32"),
     (["flow", "/dev/null", "{c}/b.png", "-o", "{t}/f.flo"], "not an image file"),
     (["flow", "{c}/a.png", "{c}/no_images", "-o", "{t}/f.flo"], "folder"),
+    (["analogy", "{c}/truncated.png", "{c}/a.png", "{c}/b.png", "-o", "{t}/an.png"],
+     "truncated.png"),
+    (["analogy", "{c}/truncated_end.png", "{c}/a.png", "{c}/b.png", "-o", "{t}/an.png"],
+     "truncated_end.png"),
+    (["analogy", "{c}/a.png", "{c}/truncated_header.png", "{c}/b.png", "-o", "{t}/an.png"],
+     "truncated_header.png"),
+    # ground truth
+    (["eval", "{c}/preds", "{c}/gt_corrupt"], "gt000002.png"),
+    (["eval", "{c}/preds", "{c}/roi_corrupt"], "ROI.bmp"),
+    (["compare", "{c}/roi_corrupt", "-o", "{t}/cmp", "-m", "mog2", "--no-video"], "ROI.bmp"),
     # videos and frame sources
     (["run", "{c}/empty.mkv", "-o", "{t}/m.mkv", "-m", "mog2"], "empty.mkv"),
     (["run", "{c}/noise.mp4", "-o", "{t}/m.mkv", "-m", "mog2"], "noise.mp4"),
@@ -188,8 +205,19 @@ CASES = [
 @pytest.mark.parametrize("argv, words", CASES, ids=[" ".join(c[0])[:60] for c in CASES])
 def test_refused_in_one_line(corpus, tmp_path, capfd, argv, words):
     argv = [a.format(c=corpus, t=tmp_path) for a in argv]
-    assert words in _one_error_line(argv, capfd)
+    assert words in one_error_line(argv, capfd)
     assert not [p for p in tmp_path.iterdir() if p.name != "cmp"]  # nothing half-written
+
+
+def test_damaged_ground_truth_in_compare_gives_no_native_log_line(corpus, tmp_path, capfd):
+    # The outputs written before the damaged frame are reported too, each in a bgsub line.
+    assert main(["compare", str(corpus / "gt_corrupt"), "-o", str(tmp_path / "cmp"), "-m",
+                 "mog2"]) == 2
+    lines = capfd.readouterr().err.splitlines()
+    assert all(line.startswith("bgsub: ") for line in lines), lines
+    assert [line for line in lines if line.startswith("bgsub: error:")] == [
+        f"bgsub: error: cannot read ground-truth image {corpus}/gt_corrupt/groundtruth/"
+        "gt000002.png"]
 
 
 def _bgsub(*argv) -> subprocess.CompletedProcess:

@@ -118,7 +118,7 @@ def test_motion_in_shorter_than_the_input_says_the_rest_was_estimated(clip, tmp_
 @pytest.mark.parametrize("content, words", [
     (np.zeros((N, 2, 3)), "(N, 3, 3) array"),
     (np.full((N, 3, 3), np.inf), "entry 0 is partly not finite"),
-    (b"garbage", "cannot read the known camera motion"),
+    (b"garbage", "not an .npy file; the known camera motion is an (N, 3, 3) float array"),
 ])
 def test_bad_motion_in_is_one_line(clip, tmp_path, bgsub_error, content, words):
     path = tmp_path / "cam.npy"

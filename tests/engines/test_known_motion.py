@@ -134,7 +134,7 @@ def test_bad_motion_files_are_refused(tmp_path):
         KnownMotion.from_value(str(tmp_path / "none.npy"))
     garbage = tmp_path / "cam.npy"
     garbage.write_bytes(b"not an array")
-    with pytest.raises(InputError, match="cannot read the known camera motion"):
+    with pytest.raises(InputError, match="not an .npy file; the known camera motion is an "):
         KnownMotion.from_value(str(garbage))
 
 

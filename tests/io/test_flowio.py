@@ -54,8 +54,9 @@ def test_flo_layout_is_middlebury(tmp_path):
 def test_flo_bad_tag_is_input_error(tmp_path):
     path = tmp_path / "bad.flo"
     path.write_bytes(np.array([1.0], "<f4").tobytes() + np.array([2, 2], "<i4").tobytes() + bytes(32))
-    with pytest.raises(InputError, match="tag"):
+    with pytest.raises(InputError) as caught:
         read_flo(path)
+    assert f"not a .flo file (tag 1, expected 202021.25): {path}" == str(caught.value)
 
 
 def test_flo_truncated_is_input_error(tmp_path):

@@ -4,6 +4,7 @@ fixtures are in conftest.py."""
 from __future__ import annotations
 
 import contextlib
+from pathlib import Path
 
 import numpy as np
 import pytest

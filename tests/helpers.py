@@ -209,7 +209,6 @@ def serve_folder(folder, *, cut_at=None, hold=0.0):
     (``hold`` longer than the reader's timeout) or drops (no ``hold``)."""
     import http.server
     import re
-    import threading
     import time
 
     root = Path(folder)
@@ -248,7 +247,18 @@ def serve_folder(folder, *, cut_at=None, hold=0.0):
             except OSError:  # the reader went away
                 pass
 
-    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Handler)
+    with http_server(Handler) as url:
+        yield url
+
+
+@contextlib.contextmanager
+def http_server(handler):
+    """Serve with ``handler`` (a request handler class, or a factory of one) from 127.0.0.1
+    in a thread; yields the base URL (``http://127.0.0.1:PORT/``)."""
+    import http.server
+    import threading
+
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
     server.daemon_threads = True
     thread = threading.Thread(target=server.serve_forever, daemon=True)
     thread.start()

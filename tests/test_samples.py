@@ -249,7 +249,7 @@ def test_generate_scene_refuses_existing_output(tmp_path):
 def test_cli_writes_scenes_and_summary(tmp_path, capsys):
     out = tmp_path / "scenes"
     status = main(["samples", str(out), "--category", "static", "fast-pan", "--seed", "0", "1",
-                   "--frames", "6", "--size", "96x72"])
+                   "--max-frames", "6", "--size", "96x72"])
     assert status == 0
     names = sorted(p.name for p in out.iterdir())
     assert names == ["fast-pan_s0", "fast-pan_s1", "static_s0", "static_s1"]
@@ -262,7 +262,7 @@ def test_cli_writes_scenes_and_summary(tmp_path, capsys):
 
 
 def test_cli_output_is_what_the_library_writes(tmp_path):
-    assert main(["samples", str(tmp_path / "a"), "-c", "jitter", "-s", "7", "-n", "4",
+    assert main(["samples", str(tmp_path / "a"), "-c", "jitter", "-s", "7", "--max-frames", "4",
                  "--size", "96x72", "-q"]) == 0
     generate_scene(SceneSpec("jitter", seed=7, n_frames=4, width=96, height=72), tmp_path / "b")
     for name in ["input/in000004.jpg", "groundtruth/gt000004.png", "camera_motion.npy"]:
@@ -271,7 +271,7 @@ def test_cli_output_is_what_the_library_writes(tmp_path):
 
 
 def test_cli_refuses_existing_output(tmp_path, capsys):
-    args = ["samples", str(tmp_path), "-c", "pan", "-n", "3", "--size", "96x72", "-q"]
+    args = ["samples", str(tmp_path), "-c", "pan", "--max-frames", "3", "--size", "96x72", "-q"]
     assert main(args) == 0
     capsys.readouterr()
     assert main(args) == 2
@@ -281,7 +281,7 @@ def test_cli_refuses_existing_output(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("bad", [["--size", "320by240"], ["--size", "10x10"],
-                                 ["--category", "moving"], ["--frames", "1"],
+                                 ["--category", "moving"], ["--max-frames", "1"],
                                  ["--category", ","], ["--size", "101x77"]])
 def test_cli_bad_options_exit_2_with_one_line(tmp_path, capsys, bad):
     assert main(["samples", str(tmp_path / "x")] + bad) == 2

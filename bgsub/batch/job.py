@@ -32,8 +32,8 @@ class RunJob:
     input, name : str
         The input as :func:`bgsub.io.sources.open_source` takes it, and its name.
     outputs : dict
-        ``{"masks": path, "vis": path, "flow_vis": path, "motion": path}`` (side outputs only
-        when written).
+        ``{"masks": path, "vis": path, ...}``: a path per kind of
+        :class:`bgsub.io.pipeline.OutputRequest` (side outputs only when written).
     record : str
         Its completion record.
     method : str
@@ -50,6 +50,9 @@ class RunJob:
         OpenCV threads of the process running the job.
     progress : bool
         Show a progress bar over the frames (for a job run in the command's own process).
+    writing : dict
+        How the outputs are written: ``codec``, ``min_object_area`` (the fields of
+        :class:`~bgsub.io.pipeline.OutputRequest` beyond the paths).
     """
 
     input: str
@@ -63,11 +66,16 @@ class RunJob:
     overwrite: bool = False
     threads: int = 1
     progress: bool = False
+    writing: Dict[str, Any] = field(default_factory=dict)
 
     def settings(self) -> Dict[str, Any]:
-        """The settings its completion record holds (see :func:`record.settings`)."""
-        return record.settings(input_path=self.input, method=self.method, params=self.params,
+        """The settings its completion record holds (see :func:`record.settings`), with the
+        ways of writing not left at their defaults (so records of batches run without them
+        stay as they were)."""
+        held = record.settings(input_path=self.input, method=self.method, params=self.params,
                                source=self.source)
+        writing = {k: v for k, v in self.writing.items() if v not in (None, "auto")}
+        return {**held, "writing": writing} if writing else held
 
 
 @dataclass
@@ -115,31 +123,13 @@ def _stop_check(should_stop: Optional[StopCheck]) -> Any:
     return StopCheck()
 
 
-def _writers(stack: contextlib.ExitStack, job: RunJob, info: Any) -> List[Any]:
-    """Open the job's outputs in ``stack`` and return their frame-loop writers."""
-    from bgsub.io import writers
-    from bgsub.io.sinks import MotionSink, VideoSink, VisSink, open_mask_sink
-
-    paths, overwrite = job.outputs, job.overwrite
-    size = dict(width=info.width, height=info.height, fps=info.fps, overwrite=overwrite)
-    opened = [writers.MaskWriter(stack.enter_context(open_mask_sink(paths["masks"], **size)))]
-    if "vis" in paths:
-        opened.append(writers.VisWriter(stack.enter_context(VisSink(paths["vis"], **size))))
-    if "flow_vis" in paths:
-        opened.append(writers.DebugImageWriter(stack.enter_context(
-            VideoSink(paths["flow_vis"], fps=info.fps, overwrite=overwrite))))
-    if "motion" in paths:
-        opened.append(writers.MotionWriter(stack.enter_context(
-            MotionSink(paths["motion"], overwrite=overwrite))))
-    return opened
-
-
 def _process(job: RunJob, loop_stats: List[Any], should_stop: Optional[StopCheck],
              warnings: List[str]) -> int:
     """Run the engine over the input into the outputs; the frames processed. The frame loop's
     stats go to ``loop_stats`` first, so an interrupted run's count is known."""
     from bgsub import engines
     from bgsub.io.loop import FrameLoop
+    from bgsub.io.pipeline import OutputRequest, open_outputs
     from bgsub.io.sources import open_source
     from bgsub.io.writers import ProgressBar
 
@@ -148,7 +138,10 @@ def _process(job: RunJob, loop_stats: List[Any], should_stop: Optional[StopCheck
     with contextlib.ExitStack() as stack:
         stack.enter_context(source)
         stack.callback(getattr(engine, "close", lambda: None))  # its second thread, if any
-        consumers = _writers(stack, job, source.info) + [_stop_check(should_stop)]
+        request = OutputRequest(**job.outputs, **job.writing, overwrite=job.overwrite)
+        info = source.info
+        consumers = open_outputs(stack, request, width=info.width, height=info.height,
+                                 fps=info.fps)[0] + [_stop_check(should_stop)]
         consumers.append(ProgressBar(total=source.info.frame_count, desc=job.name,
                                      enabled=job.progress))
         loop = FrameLoop({job.method: engine}, consumers)

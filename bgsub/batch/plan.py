@@ -2,7 +2,8 @@
 
 ``-o OUTDIR`` gets ``OUTDIR/NAME.mkv`` (or ``.avi``/``.mp4``, or a ``OUTDIR/NAME/`` folder of
 ``binNNNNNN.png`` masks); each side output's folder gets ``NAME.mp4`` (``--vis``,
-``--flow-vis``) or ``NAME.npy`` (``--motion``). Completion records go to
+``--flow-vis``), ``NAME.npy`` (``--motion``), ``NAME.jsonl`` (``--objects``) or ``NAME.csv``
+(``--stats``). Completion records go to
 ``OUTDIR/.bgsub-batch/NAME.json`` (see :mod:`bgsub.batch.record`).
 """
 
@@ -22,7 +23,12 @@ RECORD_FOLDER = ".bgsub-batch"
 
 #: Side outputs: option, and the extension of the file each input gets in its folder.
 SIDE_OUTPUTS = (("vis", "--vis", ".mp4"), ("flow_vis", "--flow-vis", ".mp4"),
-                ("motion", "--motion", ".npy"))
+                ("motion", "--motion", ".npy"), ("objects", "--objects", ".jsonl"),
+                ("stats", "--stats", ".csv"))
+
+#: The option that names each kind of output (:data:`bgsub.io.pipeline.KINDS`), of a batch and
+#: of a single run alike.
+OPTIONS = {"masks": "-o", **{kind: flag for kind, flag, _ in SIDE_OUTPUTS}}
 
 
 @dataclass(frozen=True)
@@ -35,7 +41,7 @@ class OutputLayout:
         ``-o``: the masks of every input.
     mask_format : str
         One of :data:`MASK_FORMATS` (default ``mkv``: lossless FFV1).
-    vis, flow_vis, motion : str, optional
+    vis, flow_vis, motion, objects, stats : str, optional
         Folders of the side outputs (``None``: not written).
     """
 
@@ -44,6 +50,8 @@ class OutputLayout:
     vis: Optional[str] = None
     flow_vis: Optional[str] = None
     motion: Optional[str] = None
+    objects: Optional[str] = None
+    stats: Optional[str] = None
 
     def __post_init__(self) -> None:
         if self.mask_format not in MASK_FORMATS:
@@ -63,8 +71,7 @@ class OutputLayout:
 
     def flagged(self, name: str) -> Tuple[Tuple[str, str], ...]:
         """``(option, path)`` of each output of the input named ``name``, ``-o`` first."""
-        flags = {"masks": "-o", **{kind: flag for kind, flag, _ in SIDE_OUTPUTS}}
-        return tuple((flags[kind], path) for kind, path in self.outputs(name).items())
+        return tuple((OPTIONS[kind], path) for kind, path in self.outputs(name).items())
 
     @property
     def record_folder(self) -> str:
@@ -74,6 +81,12 @@ class OutputLayout:
     def record(self, name: str) -> str:
         """The completion record of the input named ``name``."""
         return str(Path(self.record_folder) / f"{name}.json")
+
+    def extension(self, flag: str) -> str:
+        """The extension of the files written to the folder of option ``flag``."""
+        if flag == "-o":
+            return f".{self.mask_format}"
+        return next(extension for _, option, extension in SIDE_OUTPUTS if option == flag)
 
     def folders(self) -> Tuple[Tuple[str, str], ...]:
         """``(option, folder)`` of every output folder in use, ``-o`` first."""

@@ -11,7 +11,8 @@ input's outputs:
 
 Both hold the *settings* the outputs were made with: the input (its resolved path, and for a
 file its size and modification time, for a folder its modification time), the method, the
-engine parameters given, the frame range and size, and the output paths. A rerun of the batch
+engine parameters given, the frame range and size, the ways of writing not left at their
+defaults (``writing``: codec, min object area) and the output paths. A rerun of the batch
 (:func:`decide`) then
 
 * skips an input whose record is complete, made with the same settings, and whose outputs all
@@ -19,7 +20,7 @@ engine parameters given, the frame range and size, and the output paths. A rerun
 * redoes an input whose record is ``running`` (a batch stopped while it ran: its outputs are
   partial) or complete but missing an output (one now asked for, or deleted);
 * keeps, without ``--overwrite``, the outputs of an input whose complete record holds other
-  settings (another method or parameter, or an input changed since): the input is skipped with
+  settings (another method, parameter or way of writing, or an input changed since): the input is skipped with
   a reason that names what changed;
 * refuses, without ``--overwrite``, an input whose outputs exist with no record at all (not made
   by a batch): replacing those would destroy results nothing can tell are stale.
@@ -104,7 +105,7 @@ def _changes(old: Any, new: Any, prefix: str = "") -> List[str]:
             continue
         if key == "input":
             changes.append("the input changed since")
-        elif key in ("params", "source"):
+        elif key in ("params", "source", "writing"):
             changes += _changes(old.get(key) or {}, new.get(key) or {})
         else:
             changes += _changes(old.get(key), new.get(key), f"{prefix}.{key}" if prefix else key)

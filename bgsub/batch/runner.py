@@ -14,7 +14,7 @@ import json
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Dict, Iterable, List, Mapping, Tuple
+from typing import Any, Callable, Dict, Iterable, List, Mapping, Optional, Tuple
 
 from bgsub.batch import record
 from bgsub.batch.inputs import BatchInput
@@ -58,18 +58,20 @@ class BatchReport:
 
 def plan(items: Iterable[BatchInput], layout: OutputLayout, *, method: str,
          params: Mapping[str, Any], run_params: Mapping[str, Any],
-         source: Mapping[str, Any], overwrite: bool, threads: int, progress: bool = False
-         ) -> Tuple[List[RunJob], List[JobResult]]:
+         source: Mapping[str, Any], overwrite: bool, threads: int, progress: bool = False,
+         writing: Optional[Mapping[str, Any]] = None) -> Tuple[List[RunJob], List[JobResult]]:
     """The jobs to run, and the results of the inputs that need none (complete outputs:
     ``skipped``, with the reason when they were made with other settings; outputs that are not
     the batch's to replace: ``failed``, with the reason).
-    ``progress``: the jobs show a bar over their frames (when they run in this process)."""
+    ``progress``: the jobs show a bar over their frames (when they run in this process);
+    ``writing``: how the outputs are written (:attr:`RunJob.writing`)."""
     jobs: List[RunJob] = []
     settled: List[JobResult] = []
     for item in items:
         outputs = layout.outputs(item.name)
         job = RunJob(item.path, item.name, outputs, layout.record(item.name), method,
-                     dict(params), dict(run_params), dict(source), overwrite, threads, progress)
+                     dict(params), dict(run_params), dict(source), overwrite, threads, progress,
+                     dict(writing or {}))
         decision, refused = record.decide(job.record, settings=job.settings(),
                                           outputs=outputs, overwrite=overwrite)
         if decision == record.SKIP and is_live(item.path):
@@ -151,7 +153,7 @@ def check_layout(layout: OutputLayout, items: List[BatchInput]) -> None:
         if resolved in video_folders:
             raise OutputError(f"{folder}: {flag} is the folder of input videos; what is written "
                               "there would be read as inputs next time (give another folder)")
-        extension = {"--motion": ".npy", "-o": f".{layout.mask_format}"}.get(flag, ".mp4")
+        extension = layout.extension(flag)
         if (resolved, extension) in seen:
             raise OutputError(f"{folder}: given to both {seen[resolved, extension]} and {flag}")
         seen[resolved, extension] = flag

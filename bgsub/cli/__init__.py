@@ -235,6 +235,9 @@ def _silence_stdout(*, final: bool) -> None:
 
 
 def _main(argv: Optional[List[str]]) -> int:
+    from bgsub.cli.opencv_wheels import warn_once
+
+    warn_once()  # (package metadata only: no OpenCV import yet)
     argv_list = sys.argv[1:] if argv is None else list(argv)
     try:
         # Imports the sub-command (every one for `bgsub --help`), and so numpy and OpenCV.

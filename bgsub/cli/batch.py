@@ -8,6 +8,7 @@ failure, the closing summary line and the ``--summary`` JSON.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 import time
@@ -19,26 +20,25 @@ from bgsub.errors import InputError, OutputError
 _BATCH_HELP = """\
 several inputs (or a folder or glob of videos) make a batch: one output per input in the -o
 folder, named after the input (OUTDIR/v1.mkv for v1.mp4; --mask-format png: a folder
-OUTDIR/v1/ of binNNNNNN.png), and --vis, --flow-vis and --motion name folders too. An input
-whose complete outputs exist is skipped (--overwrite redoes it); OUTDIR/.bgsub-batch/ records
-which are complete. A failing input does not stop the others; the exit status is 1 when any
-failed. Ctrl-C stops the batch: finished outputs stay, running ones are partial but valid and
-are redone by the next run."""
+OUTDIR/v1/ of binNNNNNN.png), and --vis, --flow-vis, --motion, --objects (NAME.jsonl) and
+--stats (NAME.csv) name folders too; --json prints the batch's summary. An input
+whose complete outputs exist is skipped, also when they were made with other settings (its line
+names the changes; --overwrite redoes it); OUTDIR/.bgsub-batch/ records which are complete. A
+failing input does not stop the others; the exit status is 1 when any failed. Ctrl-C stops the
+batch: finished outputs stay, running ones are partial but valid and are redone by the next
+run."""
 
 
-def add_parallel_options(parser: argparse.ArgumentParser, *,
-                         one_by_default: bool = False) -> None:
-    """``--jobs`` and ``--scheduler``: how many inputs at once, and where. ``one_by_default``:
-    ``--jobs`` defaults to 1 (``compare`` and ``eval``: their timings are not shared cores', and
-    Ctrl-C reports the frames processed), else to the usable cores."""
+def add_parallel_options(parser: argparse.ArgumentParser) -> None:
+    """``--jobs`` and ``--scheduler``: how many inputs at once, and where. ``--jobs`` defaults
+    to 1 in every command (an interrupted run reports what it processed, and timings are not
+    shared cores'); 0 takes the usable cores."""
     from bgsub.batch.threads import usable_cores
 
     group = parser.add_argument_group("many inputs")
-    default = ("1: one sequence after another, so an interrupted run still reports what it "
-               "processed" if one_by_default else f"the usable cores, {usable_cores()} here")
-    group.add_argument("-j", "--jobs", type=int, default=1 if one_by_default else None,
-                       metavar="N", help="inputs processed at once in local processes, each "
-                                         f"engine on one core (default: {default})")
+    group.add_argument("-j", "--jobs", type=int, default=1, metavar="N",
+                       help="inputs processed at once in local processes, each engine on one "
+                            f"core (default: 1; 0: the usable cores, {usable_cores()} here)")
     group.add_argument("--scheduler", default=None, metavar="ADDRESS",
                        help="run on the Dask cluster whose scheduler is at ADDRESS "
                             "(tcp://host:8786; needs pip install 'bgsub[dask]'); inputs and "
@@ -77,26 +77,28 @@ def jobs_and_threads(args: argparse.Namespace) -> tuple:
     """``(jobs, threads per job)`` of ``--jobs`` (a Dask task gets one thread)."""
     from bgsub.batch.threads import threads_per_job, usable_cores
 
-    jobs = usable_cores() if args.jobs is None else args.jobs
-    if jobs < 1:
-        raise InputError(f"--jobs must be at least 1, not {jobs}")
+    if args.jobs < 0:
+        raise InputError(f"--jobs takes a number of inputs at once, or 0 for the usable cores; "
+                         f"not {args.jobs}")
+    jobs = args.jobs or usable_cores()
     return jobs, (1 if args.scheduler else threads_per_job(jobs))
 
 
 def _layout(args: argparse.Namespace) -> Any:
-    from bgsub.batch.plan import OutputLayout
+    from bgsub.batch.plan import SIDE_OUTPUTS, OutputLayout
     from bgsub.io.sinks import MASK_VIDEO_CODECS
 
     if args.output.lower().endswith(tuple(MASK_VIDEO_CODECS)):
         raise OutputError(f"{args.output}: -o of several inputs is a folder (each input's masks "
                           "go to OUTDIR/NAME.mkv; --mask-format chooses the type)")
-    for flag, path in (("--vis", args.vis), ("--flow-vis", args.flow_vis),
-                       ("--motion", args.motion)):
-        if path and path.lower().endswith((".mp4", ".avi", ".mkv", ".mov", ".npy")):
+    sides = {kind: getattr(args, kind, None) for kind, _, _ in SIDE_OUTPUTS}
+    for kind, flag, _ in SIDE_OUTPUTS:
+        path = sides[kind]
+        if path and path.lower().endswith((".mp4", ".avi", ".mkv", ".mov", ".npy", ".jsonl",
+                                           ".csv")):
             raise OutputError(f"{path}: {flag} of several inputs is a folder (one file per "
                               "input, named after it)")
-    return OutputLayout(args.output, args.mask_format or "mkv", args.vis, args.flow_vis,
-                        args.motion)
+    return OutputLayout(args.output, args.mask_format or "mkv", **sides)
 
 
 def _say(bar: Any, message: str) -> None:
@@ -142,7 +144,8 @@ def _prepare(args: argparse.Namespace, *, method: str, params: dict, reads: list
     from bgsub.batch import inputs, runner
     from bgsub.cli import common
 
-    for_workers(args, "input", "output", "vis", "flow_vis", "motion", "summary")
+    for_workers(args, "input", "output", "vis", "flow_vis", "motion", "objects", "stats",
+                "summary")
     items = inputs.expand(args.input)
     layout = _layout(args)
     jobs, per_job = jobs_and_threads(args)
@@ -220,7 +223,9 @@ def run_batch(args: argparse.Namespace, *, method: str, params: dict, reads: lis
         todo, settled = runner.plan(items, layout, method=method, params=params,
                                     run_params=run_params, source=_source(args),
                                     overwrite=args.overwrite, threads=per_job,
-                                    progress=jobs == 1 and not args.scheduler and not args.quiet)
+                                    progress=jobs == 1 and not args.scheduler and not args.quiet,
+                                    writing={"codec": args.codec,
+                                             "min_object_area": args.min_object_area})
         results = {result.name: result for result in settled}
         bar = tqdm(total=len(items), initial=len(settled), unit="input", desc=method,
                    file=sys.stderr, disable=args.quiet or not sys.stderr.isatty(), leave=False)
@@ -239,6 +244,8 @@ def run_batch(args: argparse.Namespace, *, method: str, params: dict, reads: lis
     settings = {"method": method, "params": params, "jobs": jobs, "threads_per_job": per_job,
                 "scheduler": args.scheduler}
     report = runner.BatchReport([results[item.name] for item in items], interrupted, settings)
+    if args.json:
+        print(json.dumps(report.to_dict(), default=str), flush=True)
     common.note(_closing_line(report, time.perf_counter() - started, args.output),
                 quiet=args.quiet and report.ok)
     if args.summary:  # (after the closing line: a full disk may refuse it)
@@ -263,25 +270,17 @@ def dispatch(args: argparse.Namespace, *, method: str, params: dict,
     from bgsub.batch import inputs
 
     if inputs.is_batch(args.input):
-        for flag, value in (("--objects", getattr(args, "objects", None)),
-                            ("--json", getattr(args, "json", False))):
-            if value:
-                raise InputError(f"{flag} is for a single input; a batch writes --summary "
-                                 "FILE.json")
-        if getattr(args, "codec", "auto") != "auto":
-            raise InputError("--codec is for a single input; a batch writes its .mp4 videos "
-                             "in H.264 when PyAV is installed, else in mp4v")
         return run_batch(args, method=method, params=params, reads=list(reads or []))
-    for flag, value in (("--scheduler", args.scheduler), ("--summary", args.summary),
-                        ("--mask-format", args.mask_format)):
+    jobs_and_threads(args)  # (a bad --jobs is refused as a batch refuses it)
+    for flag, value in (("--jobs", args.jobs != 1), ("--scheduler", args.scheduler),
+                        ("--summary", args.summary), ("--mask-format", args.mask_format)):
         if value:
             raise InputError(f"{flag} is for several inputs (a batch); give more than one "
                              "input, or a folder or glob of videos" + _SINGLE_HINTS.get(flag, ""))
-    if args.jobs is not None:
-        jobs_and_threads(args)  # (a single input runs in this process: only checked)
     args.input = args.input[0]
     return None
 
 
-_SINGLE_HINTS = {"--mask-format": " (a single input's -o names the format: masks.mkv, or "
+_SINGLE_HINTS = {"--jobs": " (a single input runs in one process)",
+                 "--mask-format": " (a single input's -o names the format: masks.mkv, or "
                                   "masks/ for binNNNNNN.png)"}

@@ -7,7 +7,8 @@ import json
 import re
 from typing import Any, Tuple
 
-from bgsub.cli.compare import parse_method_params, parse_methods
+from bgsub.cli.common import add_deprecated
+from bgsub.cli.compare import add_param_option, parse_method_params, parse_methods
 from bgsub.errors import InputError
 
 _DESCRIPTION = """\
@@ -21,7 +22,7 @@ thread count you mean to use (e.g. OMP_NUM_THREADS=1)."""
 _EPILOG = """\
 examples:
   bgsub bench                                      all engines, 320x240, 50 frames, 3 repeats
-  bgsub bench --methods grbm,mog2 --size 640x480 --frames 100
+  bgsub bench --methods grbm,mog2 --size 640x480 --max-frames 100
   bgsub bench --memory --json > bench.json         also peak memory per method, as JSON
   OMP_NUM_THREADS=1 bgsub bench --methods grbm     single-threaded figure
 """
@@ -43,12 +44,13 @@ def register(subparsers: Any) -> None:
                         metavar="M1,M2",
                         help="comma-separated engines (default: all registered; see "
                              "`bgsub methods`)")
-    parser.add_argument("--frames", type=int, default=50, metavar="N",
+    parser.add_argument("--max-frames", type=int, default=50, metavar="N",
                         help="timed frames per run (default: 50)")
+    add_deprecated(parser, "--frames", use="--max-frames", dest="max_frames", type=int,
+                   metavar="N")
     parser.add_argument("--repeats", type=int, default=3, metavar="R",
                         help="runs per method; the median is reported (default: 3)")
-    parser.add_argument("-p", "--param", action="append", default=[], metavar="METHOD.KEY=VALUE",
-                        help="engine parameter, e.g. mog2.history=200 (repeatable)")
+    add_param_option(parser)
     parser.add_argument("--memory", action="store_true",
                         help="also report peak memory (ru_maxrss), each method in its own process")
     parser.add_argument("--seed", type=int, default=0, help="seed of the generated clip")
@@ -77,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
                else [spec.name for spec in available_engines()])
     params = parse_method_params(args.param, methods)
     report = bench_methods(
-        methods=methods, width=width, height=height, frames=args.frames, repeats=args.repeats,
+        methods=methods, width=width, height=height, frames=args.max_frames, repeats=args.repeats,
         params=params, memory=args.memory, seed=args.seed,
         progress=lambda it, total, desc: progress(it, total=total, desc=desc, quiet=args.quiet,
                                                   unit="method"),

@@ -35,6 +35,29 @@ def source_kwargs(args: argparse.Namespace) -> dict:
                 width=args.width, fps=args.fps)
 
 
+class _Deprecated(argparse.Action):
+    """A hidden old spelling of an option: stores into the new option's ``dest`` and says on
+    stderr which spelling to use instead."""
+
+    def __init__(self, option_strings: List[str], dest: str, *, use: str,
+                 **kwargs: Any) -> None:
+        self.use = use
+        super().__init__(option_strings, dest, **kwargs)
+
+    def __call__(self, parser: Any, namespace: argparse.Namespace, values: Any,
+                 option_string: Optional[str] = None) -> None:
+        print(f"bgsub: warning: {option_string} is deprecated; use {self.use}", file=sys.stderr)
+        setattr(namespace, self.dest, values)
+
+
+def add_deprecated(parser: Any, *old: str, use: str, dest: str, **kwargs: Any) -> None:
+    """Old spellings ``old`` of the option ``use`` (whose value goes to ``dest``), accepted for
+    one release without showing in the help; ``kwargs`` as ``use``'s (``type``, ``choices``,
+    ``metavar``)."""
+    parser.add_argument(*old, dest=dest, action=_Deprecated, use=use, help=argparse.SUPPRESS,
+                        default=argparse.SUPPRESS, **kwargs)
+
+
 def add_output_options(parser: argparse.ArgumentParser, *,
                        quiet_help: str = "no progress bar and no notes on stderr (warnings, "
                                          "errors and the results are still printed)") -> None:

@@ -7,8 +7,8 @@ from pathlib import Path
 from typing import Any, Dict, List
 
 from bgsub.cli import batch
-from bgsub.cli.common import (add_codec_option, add_output_options, add_source_options,
-                              describe_codec, note, source_kwargs, warn)
+from bgsub.cli.common import (add_codec_option, add_deprecated, add_output_options,
+                              add_source_options, describe_codec, note, source_kwargs, warn)
 from bgsub.errors import InputError
 
 _DESCRIPTION = """\
@@ -26,8 +26,8 @@ NAME before its first '_', e.g. BMS26_cars1 -> BMS26), or any video / image fold
 REPORT_DIR receives report.txt (also printed), report.csv and report.json; report.html, one
 self-contained page to open in a browser (the table, charts of the F-measure per method, and per
 sequence and family for a dataset root, and a few frames of each input: input, ground truth,
-each method's mask); the masks of each method (METHOD/binNNNNNN.png, or METHOD.mkv with --masks
-mkv); and side_by_side.mp4 (input, ground truth when there is one, and one labelled mask per
+each method's mask); the masks of each method (METHOD/binNNNNNN.png, or METHOD.mkv with
+--mask-format mkv); and side_by_side.mp4 (input, ground truth when there is one, and one labelled mask per
 method). The ground-truth tiles show CDnet's labels as gray levels: 255 (moving) white, 170
 (unknown) light grey, 85 (outside the ROI) mid grey, 50 (shadow) dark grey; dark blue where a
 frame has no ground truth. For a dataset root, masks and videos go to REPORT_DIR/SEQUENCE/.
@@ -49,11 +49,24 @@ examples:
   bgsub compare data/real/CDnet2014_cameraJitter_traffic -o cmp_traffic/ --methods mog2,grbm \\
       --skip-first --no-roi-bmp                 (traffic's ROI.bmp has the wrong size)
   bgsub compare clip.mp4 --gt clip_gt/ -o cmp/ --param mog2.history=200 --max-frames 100
-  bgsub compare scenes/pan_s0 -o cmp/ --width 160 --masks none     quick look, no masks written
+  bgsub compare scenes/pan_s0 -o cmp/ --width 160 --mask-format none   quick look, no masks
 
 exit status: 0 done, 2 bad input or output (unknown method, missing input, REPORT_DIR exists),
 1 failure while processing
 """
+
+
+_MASK_FORMATS = ("png", "mkv", "none")
+
+_PARAM_HELP = ("engine parameter (repeatable): METHOD.KEY=VALUE sets one method's, e.g. "
+               "mog2.history=200; KEY=VALUE sets it for every method that has KEY, e.g. "
+               "history=200 (refused when none has it)")
+
+
+def add_param_option(parser: Any) -> None:
+    """``-p/--param`` of the commands that run several methods (see :func:`parse_method_params`)."""
+    parser.add_argument("-p", "--param", action="append", default=[],
+                        metavar="[METHOD.]KEY=VALUE", help=_PARAM_HELP)
 
 
 def register(subparsers: Any) -> None:
@@ -74,9 +87,7 @@ def register(subparsers: Any) -> None:
                         metavar="M1,M2,...",
                         help="comma-separated engines (default: all registered; see "
                              "`bgsub methods`)")
-    parser.add_argument("-p", "--param", action="append", default=[],
-                        metavar="METHOD.KEY=VALUE",
-                        help="engine parameter, e.g. mog2.history=200 (repeatable)")
+    add_param_option(parser)
     parser.add_argument("--gt", default=None, metavar="SEQUENCE",
                         help="CDnet sequence folder with the ground truth of INPUT (default: "
                              "INPUT itself when it is one)")
@@ -91,9 +102,11 @@ def register(subparsers: Any) -> None:
     roi.add_argument("--no-roi-bmp", dest="roi_bmp", action="store_const", const=False,
                      help="ignore ROI.bmp even for a single sequence")
     outputs = parser.add_argument_group("outputs")
-    outputs.add_argument("--masks", choices=("png", "mkv", "none"), default="png",
+    outputs.add_argument("--mask-format", choices=_MASK_FORMATS, default="png",
                          help="masks per method: binNNNNNN.png folder, lossless .mkv video, or "
                               "none (default: png)")
+    add_deprecated(outputs, "--masks", use="--mask-format", dest="mask_format",
+                   choices=_MASK_FORMATS)
     outputs.add_argument("--no-video", action="store_true",
                          help="do not write side_by_side.mp4 (faster on datasets)")
     add_codec_option(outputs)
@@ -109,7 +122,7 @@ def register(subparsers: Any) -> None:
         "--max-frames", type=int, default=None, metavar="N",
         help="process at most N frames per sequence (quick runs; note a temporal ROI may start "
              "later, e.g. frame 900 for CDnet traffic)")
-    batch.add_parallel_options(parser, one_by_default=True)  # the sequences of a dataset at once
+    batch.add_parallel_options(parser)  # the sequences of a dataset at once
     parser.set_defaults(handler=run)
 
 
@@ -125,24 +138,32 @@ def parse_methods(text: str) -> List[str]:
 
 
 def parse_method_params(pairs: List[str], methods: List[str]) -> Dict[str, Dict[str, Any]]:
-    """``["mog2.history=200"]`` -> ``{"mog2": {"history": 200}}``, typed by the engine's params.
+    """``["mog2.history=200", "threshold=20"]`` -> ``{"mog2": {"history": 200}, ...}``, typed
+    by the engines' params: ``METHOD.KEY=VALUE`` sets one method's parameter, ``KEY=VALUE``
+    that of every method in ``methods`` that has ``KEY``.
 
-    Raises :class:`InputError` for a malformed pair, a method not in ``methods``, or a
-    parameter the engine does not have.
+    Raises :class:`InputError` for a malformed pair, a method not in ``methods``, a ``KEY`` no
+    method has, or a parameter the engine does not have.
     """
-    from bgsub.engines import parse_params
+    from bgsub.engines import get_engine_spec, parse_params
 
     grouped: Dict[str, List[str]] = {}
     for pair in pairs:
-        method, dot, rest = pair.partition(".")
-        method = method.strip()
-        if not dot or "=" not in rest or "=" in method or not method:
-            raise InputError(f"--param takes METHOD.KEY=VALUE, e.g. mog2.history=200, "
-                             f"not {pair!r}")
-        if method not in methods:
+        key, equals, value = pair.partition("=")
+        method, dot, name = key.strip().partition(".")
+        if not equals or not key.strip() or (dot and not (method and name)):
+            raise InputError(f"--param takes KEY=VALUE or METHOD.KEY=VALUE, e.g. history=200 "
+                             f"or mog2.history=200, not {pair!r}")
+        if dot and method not in methods:
             raise InputError(f"--param {pair!r}: method {method!r} is not among the methods "
                              f"({', '.join(methods)})")
-        grouped.setdefault(method, []).append(rest)
+        targets = [method] if dot else [m for m in methods
+                                         if method in get_engine_spec(m).params]
+        if not targets and len(methods) > 1:
+            raise InputError(f"--param {pair!r}: none of the methods ({', '.join(methods)}) "
+                             f"has a parameter {method!r} (see `bgsub methods`)")
+        for target in targets or methods:  # (one method: its own error names its parameters)
+            grouped.setdefault(target, []).append(f"{name if dot else method}={value}")
     return {method: parse_params(method, rest) for method, rest in grouped.items()}
 
 
@@ -165,7 +186,7 @@ def run(args: argparse.Namespace) -> int:
             args.input, methods=methods, report_dir=args.output, gt=args.gt, params=params,
             skip_first=args.skip_first,
             ignore_roi_bmp=None if args.roi_bmp is None else not args.roi_bmp,
-            max_frames=args.max_frames, masks=args.masks, video=not args.no_video,
+            max_frames=args.max_frames, masks=args.mask_format, video=not args.no_video,
             html=not args.no_report, video_codec=args.codec,
             tile_height=args.tile_height,
             overwrite=args.overwrite, quiet=args.quiet, **source_kwargs(args),

@@ -111,7 +111,7 @@ def register(subparsers: Any) -> None:
                        help="the masks stop before input frame N, 0-based (default: the end)")
     video.add_argument("--step", type=int, default=1, metavar="N",
                        help="the masks are of every N-th input frame (default: 1)")
-    batch.add_parallel_options(parser, one_by_default=True)  # the sequences of a dataset at once
+    batch.add_parallel_options(parser)  # the sequences of a dataset at once
     parser.set_defaults(handler=run)
 
 

@@ -13,22 +13,15 @@ import shlex
 from typing import Any, List, Optional
 
 from bgsub import engines
+from bgsub.batch.plan import OPTIONS
 from bgsub.cli import batch, common, run_extras, run_inputs
 from bgsub.errors import InputError
+from bgsub.io.frame_stats import COLUMNS as STATS_COLUMNS
 from bgsub.io.loop import FrameLoop, RunStats
-from bgsub.io.sinks import (
-    MotionSink,
-    VideoSink,
-    VisSink,
-    check_mask_output,
-    check_motion_output,
-    check_video_output,
-    is_video_path,
-    open_mask_sink,
-)
+from bgsub.io.pipeline import OutputRequest, open_outputs
+from bgsub.io.sinks import is_video_path
 from bgsub.io.sources import FrameSource, VideoInfo, open_source
-from bgsub.io.writers import DebugImageWriter, MaskWriter, MotionWriter, ProgressBar
-from bgsub.objects import ObjectWriter, check_objects_output
+from bgsub.io.writers import ProgressBar
 
 _DESCRIPTION = """\
 Find the moving objects in a video and write one foreground mask per frame (0 = background, 255
@@ -60,6 +53,7 @@ examples:
   bgsub run clip.mp4 -o masks.mkv --flow-vis flow.mp4  the engine's motion field and camera fit
   bgsub run clip.mp4 -o masks.mkv --motion cam.npy     the estimated camera motion of every frame
   bgsub run clip.mp4 -o masks.mkv --objects objects.jsonl --vis overlay.mp4
+  bgsub run clip.mp4 -o masks.mkv --stats stats.csv   per-frame camera motion, inliers, time
   bgsub run clip.mp4 -o masks.mkv --config grbm.toml --json
   bgsub run 0 -o camera.mkv --max-frames 500           a camera, 500 frames (or until Ctrl-C)
   bgsub run rtsp://cam.local/live -o live.mkv --stall-timeout 5
@@ -88,7 +82,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         metavar="NAME", help=f"engine to use (default: "
                                              f"{engines.DEFAULT_METHOD}; see `bgsub methods`)")
     parser.add_argument("-p", "--param", action="append", default=[], metavar="KEY=VALUE",
-                        help="set an engine parameter, e.g. --param history=200 (repeatable)")
+                        help="set an engine parameter, e.g. --param history=200 (repeatable; "
+                             "METHOD.KEY=VALUE, as compare and bench take it, works too)")
     parser.add_argument("--vis", metavar="VIDEO", default=None,
                         help="also write the input with its mask overlaid, beside the mask "
                              "(.mp4, .avi or .mkv)")
@@ -101,6 +96,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                              "k maps pixels of frame k-1 to frame k, as bgsub samples' "
                              "camera_motion.npy (identity first; NaN where none was measured; "
                              "moving-camera engines)")
+    parser.add_argument("--stats", metavar="FILE.csv", default=None,
+                        help="also write per-frame statistics for tuning, one row per frame: "
+                             + ", ".join(STATS_COLUMNS) + " (frame: the mask's number; dx, dy: "
+                             "the camera motion at the frame's centre, px; rotation in degrees; "
+                             "inliers of vectors: the camera fit's support; foreground: the "
+                             "mask's share; gain: the exposure match; model: still or "
+                             "compensated; ms: the engine's time). A cell is empty where the "
+                             "engine has no such quantity")
     run_extras.add_options(parser)
     common.add_source_options(parser)
     run_inputs.add_options(parser)
@@ -122,23 +125,23 @@ def _method(name: Optional[str]) -> str:
     return name
 
 
+def _request(args: argparse.Namespace) -> OutputRequest:
+    """The outputs asked for, as the output pipeline takes them."""
+    return OutputRequest(masks=args.output, vis=args.vis, flow_vis=args.flow_vis,
+                         motion=args.motion, objects=args.objects, stats=args.stats,
+                         codec=args.codec, min_object_area=args.min_object_area,
+                         overwrite=args.overwrite)
+
+
 def _check_outputs(args: argparse.Namespace, source: FrameSource, reads: list) -> None:
     """Refuse bad outputs before any frame is processed; ``reads``: the files the run reads
     besides its input (:func:`run_inputs.input_files`)."""
-    outputs = [("-o", args.output), ("--vis", args.vis), ("--flow-vis", args.flow_vis),
-               ("--motion", args.motion), ("--objects", args.objects)]
-    outputs = [(flag, path) for flag, path in outputs if path]
+    request = _request(args)
+    outputs = [(OPTIONS[kind], path) for kind, path in request.paths().items()]
     # First: "-", an input and the input's own folder are refused whether or not they look
     # writable, --overwrite or not.
     common.check_distinct([args.input] + reads, outputs, input_folders=source.folders)
-    check_mask_output(args.output, overwrite=args.overwrite)
-    for flag, path in outputs[1:]:
-        if flag == "--motion":
-            check_motion_output(path, overwrite=args.overwrite)
-        elif flag == "--objects":
-            check_objects_output(path, overwrite=args.overwrite)
-        else:
-            check_video_output(path, overwrite=args.overwrite)
+    request.check()
 
 
 def _plural(count: int, noun: str) -> str:
@@ -211,36 +214,9 @@ def _eval_notice(args: argparse.Namespace, renumbered: bool) -> Optional[str]:
             f"{shlex.quote(str(args.output))} GROUNDTRUTH {flags}`")
 
 
-def _open_writers(stack: contextlib.ExitStack, args: argparse.Namespace,
-                  info: VideoInfo, objects: Optional[ObjectWriter], codecs: dict) -> list:
-    """Open the outputs asked for (in ``stack``, so a failure to open one closes the others)
-    and return their writers for the frame loop; the codec of each picture video goes to
-    ``codecs`` (``{"vis": "h264"}``)."""
-    size = dict(width=info.width, height=info.height)
-    masks = stack.enter_context(open_mask_sink(args.output, **size, fps=info.fps,
-                                               overwrite=args.overwrite))
-    writers: list = [MaskWriter(masks)] + ([objects] if objects else [])  # (tracks before --vis)
-    if args.vis:
-        vis = stack.enter_context(VisSink(args.vis, **size, fps=info.fps,
-                                          overwrite=args.overwrite, codec=args.codec))
-        codecs["vis"] = vis.codec
-        writers.append(run_extras.vis_writer(vis, objects))
-    if args.flow_vis:
-        flow_vis = stack.enter_context(VideoSink(args.flow_vis, fps=info.fps,
-                                                 overwrite=args.overwrite, codec=args.codec))
-        codecs["flow_vis"] = flow_vis.codec
-        writers.append(DebugImageWriter(flow_vis))
-    if args.motion:
-        writers.append(MotionWriter(stack.enter_context(
-            MotionSink(args.motion, overwrite=args.overwrite))))
-    return writers
-
-
 def _outputs(args: argparse.Namespace) -> dict:
     """The outputs asked for, by kind."""
-    given = {"masks": args.output, "vis": args.vis, "flow_vis": args.flow_vis,
-             "motion": args.motion, "objects": args.objects}
-    return {kind: str(path) for kind, path in given.items() if path}
+    return _request(args).paths()
 
 
 def _open_input(args: argparse.Namespace, params: dict) -> tuple:
@@ -274,9 +250,9 @@ def run(args: argparse.Namespace) -> int:
     method = _method(args.method)
     params = run_inputs.engine_params(args, method, run_extras.engine_params(args, method))
     run_inputs.apply_max_frames(args)
+    run_extras.tracker_config(args)  # (refused before any input is opened)
     if args.motion_in and batch.is_batch(args):
         raise InputError("--motion-in is for a single input (a camera motion is one video's)")
-    tracking = run_extras.tracker_config(args)
     status = batch.dispatch(args, method=method, params=params,  # several inputs
                             reads=run_inputs.input_files(args, params))
     if status is not None:
@@ -302,9 +278,8 @@ def run(args: argparse.Namespace) -> int:
         stack.enter_context(source)
         if callable(getattr(engine, "close", None)):  # (a plugin may not subclass Engine)
             stack.callback(engine.close)  # its worker thread ends with the command, not after
-        codecs: dict = {}
-        consumers = _open_writers(stack, args, info,
-                                  run_extras.open_objects(stack, args, tracking), codecs)
+        consumers, codecs = open_outputs(stack, _request(args), width=info.width,
+                                         height=info.height, fps=info.fps)
         consumers.append(ProgressBar(total=info.frame_count, desc=method,
                                      enabled=not args.quiet))
         loop = FrameLoop({method: engine}, consumers)

@@ -4,17 +4,14 @@ TOML file), ``--json`` (the run's summary for scripts) and ``--objects`` (tracke
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import math
 from typing import Any, Dict, Optional
 
-from bgsub import engines
 from bgsub.cli.param_file import read_params
 from bgsub.errors import InputError
 from bgsub.io.loop import RunStats
-from bgsub.io.writers import VisWriter
-from bgsub.objects import ObjectSink, ObjectVisWriter, ObjectWriter, TrackerConfig
+from bgsub.objects import TrackerConfig
 
 
 def add_options(parser: argparse.ArgumentParser) -> None:
@@ -23,7 +20,8 @@ def add_options(parser: argparse.ArgumentParser) -> None:
                              "--param takes); --param overrides it")
     parser.add_argument("--json", action="store_true",
                         help="print the run's summary as one JSON object on stdout: frames, "
-                             "seconds, fps, complete, statuses, outputs")
+                             "seconds, fps, complete, statuses, outputs (a batch: its summary, "
+                             "as --summary writes it)")
     parser.add_argument("--objects", metavar="FILE", default=None,
                         help="also write the objects of every frame, tracked across frames: "
                              ".jsonl (one JSON line per frame) or .csv (MOTChallenge); "
@@ -35,7 +33,9 @@ def add_options(parser: argparse.ArgumentParser) -> None:
 
 def engine_params(args: argparse.Namespace, method: str) -> Dict[str, Any]:
     """The engine's parameters: the --config file's, then --param's over them."""
-    given = engines.parse_params(method, args.param)
+    from bgsub.cli.compare import parse_method_params  # (METHOD.KEY=VALUE too, as compare)
+
+    given = parse_method_params(args.param, [method]).get(method, {})
     return {**read_params(args.config, method), **given} if args.config else given
 
 
@@ -49,20 +49,6 @@ def tracker_config(args: argparse.Namespace) -> TrackerConfig:
         return TrackerConfig(min_area=args.min_object_area)
     except ValueError as err:
         raise InputError(f"--min-object-area: {err}") from None
-
-
-def open_objects(stack: contextlib.ExitStack, args: argparse.Namespace,
-                 config: TrackerConfig) -> Optional[ObjectWriter]:
-    """The objects' writer (its file opened in ``stack``), or None without --objects."""
-    if not args.objects:
-        return None
-    sink = stack.enter_context(ObjectSink(args.objects, overwrite=args.overwrite))
-    return ObjectWriter(sink, config=config)
-
-
-def vis_writer(sink: Any, objects: Optional[ObjectWriter]) -> VisWriter:
-    """The --vis writer: with boxes and ids when objects are tracked."""
-    return VisWriter(sink) if objects is None else ObjectVisWriter(sink, objects=objects)
 
 
 def print_summary(stats: RunStats, *, method: str, outputs: Dict[str, str],

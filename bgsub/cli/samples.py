@@ -7,7 +7,7 @@ import re
 from pathlib import Path
 from typing import List, Optional, Tuple
 
-from bgsub.cli.common import add_output_options, note, progress
+from bgsub.cli.common import add_deprecated, add_output_options, note, progress
 from bgsub.errors import InputError, OutputError
 from bgsub.samples import (
     CATEGORIES,
@@ -31,7 +31,7 @@ _EPILOG = """\
 examples:
   bgsub samples                                   every category, seed 0, into bgsub-samples/
   bgsub samples scenes/ --category pan --seed 0   the scene shipped as samples/pan.mp4
-  bgsub samples scenes/ --category pan jitter --seed 0 1 2 --frames 60
+  bgsub samples scenes/ --category pan jitter --seed 0 1 2 --max-frames 60
   bgsub samples scenes/ --size 640x480 --overwrite
   bgsub samples --list                            the categories and what their camera does
   bgsub samples --pan                             copy the bundled sample video to samples/pan.mp4
@@ -54,10 +54,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                              "see --list); put DIR before this option")
     parser.add_argument("-s", "--seed", action="extend", nargs="+", metavar="S",
                         help="random seeds, one scene per seed and category (default: 0)")
-    parser.add_argument("-n", "--frames", type=int, default=SceneSpec.n_frames, metavar="N",
+    parser.add_argument("--max-frames", type=int, default=SceneSpec.n_frames, metavar="N",
                         help=f"frames per scene (default: {SceneSpec.n_frames}; the first "
                              "fifth, at most 24, is an object-free warm-up outside the "
                              "temporal ROI)")
+    add_deprecated(parser, "-n", "--frames", use="--max-frames", dest="max_frames", type=int,
+                   metavar="N")
     parser.add_argument("--size", default="320x240", metavar="WxH",
                         help="frame size, at least 64x48, both even for the scene's .mp4 "
                              "(default: 320x240)")
@@ -134,7 +136,7 @@ def run(args: argparse.Namespace) -> int:
         return _copy_pan(args)
     width, height = parse_size(args.size)
     dir_given = args.dir is not None
-    specs = [SceneSpec(category, seed=seed, width=width, height=height, n_frames=args.frames)
+    specs = [SceneSpec(category, seed=seed, width=width, height=height, n_frames=args.max_frames)
              for category in _categories(args.category, dir_given)
              for seed in _seeds(args.seed, dir_given)]
     check_video_size(width, height)  # before anything is written (generate_scene checks it too)

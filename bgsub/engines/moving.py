@@ -29,7 +29,7 @@ return an empty mask (or, for a scene cut, restart the model) and say why in ``l
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Optional, Type
+from typing import Any, Dict, Optional, Type
 
 import cv2
 import numpy as np
@@ -146,6 +146,7 @@ class Previous:
     work: Optional[np.ndarray] = None  # ... and its working-size frame as the stages saw it
     result: Optional[MotionResult] = None  # the motion measured for the last frame given
     applied: Optional[np.ndarray] = None  # (3, 3): what it warped the model by
+    gain: Optional[float] = None  # its exposure gain (set where a model scored it)
     frame: Optional[np.ndarray] = None  # the last frame given, at the working size
     mask: Optional[np.ndarray] = None  # ... and its (h, w) uint8 0/255 mask (working size)
 
@@ -227,7 +228,7 @@ class MovingCameraEngine(Engine):
         gray uint8, blurred by ``smooth``), ``gray`` its (h, w) uint8 gray image, ``rate`` the
         checked learning rate (0: a frozen model). Returns the (h, w) uint8 0/255 mask."""
         prev = self.previous
-        prev.result = prev.applied = None
+        prev.result = prev.applied = prev.gain = None
         empty = np.zeros(gray.shape, np.uint8)
         if float(cv2.meanStdDev(gray)[1][0, 0]) < self.config.min_contrast:
             # Blank or textureless frame: no motion can be measured; keep the model as it is.
@@ -251,7 +252,7 @@ class MovingCameraEngine(Engine):
             self._restart(work, gray, cur)
             self.last_status = SCENE_CUT
             return empty
-        prev.applied = seen.applied
+        prev.applied, prev.gain = seen.applied, float(compared.gain)
         mask = self.foreground.decide(work, gray, seen.result, seen.matrix, compared, rate)
         prev.data, prev.gray, prev.work = cur, gray, work
         self.last_status = seen.status
@@ -330,6 +331,21 @@ class MovingCameraEngine(Engine):
             return None
         return to_input_motion(matrix, self._in_shape, self.config.work_width)
 
+    def frame_stats(self) -> Dict[str, Any]:
+        """What the engine saw of the last frame, for per-frame statistics (None where it has no
+        such quantity on that frame: the first, a blank frame, a scene cut).
+
+        ``status``: :attr:`last_status`; ``dx``, ``dy``: where :attr:`last_motion` (the motion
+        as applied, as ``--motion`` writes it) moved the frame's centre (input pixels);
+        ``rotation`` (degrees) and ``scale`` of that motion's linear part; ``inliers`` and
+        ``vectors``: the motion vectors that agree with the fit, and all the front end
+        measured; ``gain``: what the frame was divided by to match the model's exposure (1.0
+        without ``match_exposure``); ``model``: ``"still"`` or ``"compensated"``, the
+        background model that scored the frame.
+        """
+        return frame_stats(self.previous, self.last_motion, self._in_shape, self.last_status,
+                           still=self.camera_still)
+
     def get_background_image(self) -> Optional[np.ndarray]:
         """The background model's mean in the current frame's coordinates, at the input size
         (like the input: gray or BGR uint8), or None before the first frame."""
@@ -350,6 +366,29 @@ class MovingCameraEngine(Engine):
         if prev.frame is None or prev.result is None:
             return None
         return debug_picture(prev, self.frontend, self.last_status, self._in_shape)
+
+
+def frame_stats(prev: Previous, motion: Optional[np.ndarray], in_shape: Optional[tuple],
+                status: str, *, still: bool) -> Dict[str, Any]:
+    """:meth:`MovingCameraEngine.frame_stats` of the last frame ``prev`` (:class:`Previous`),
+    whose applied ``motion`` (3, 3) is in the pixels of input frames of ``in_shape``."""
+    stats: Dict[str, Any] = dict.fromkeys(
+        ("dx", "dy", "rotation", "scale", "inliers", "vectors", "gain", "model"))
+    stats["status"] = status
+    if motion is not None and prev.result is not None:  # (the first frame measured none)
+        h, w = in_shape[:2]
+        centre = np.array([(w - 1) / 2.0, (h - 1) / 2.0, 1.0])
+        moved = motion @ centre
+        stats["dx"], stats["dy"] = (moved[:2] / moved[2] - centre[:2]).tolist()
+        stats["rotation"] = float(np.degrees(np.arctan2(motion[1, 0], motion[0, 0])))
+        stats["scale"] = float(np.sqrt(abs(np.linalg.det(motion[:2, :2]))))
+    if prev.result is not None:
+        stats["inliers"] = prev.result.motion.n_inliers
+        stats["vectors"] = int(len(prev.result.points))
+    if prev.gain is not None:  # (set only where a model scored the frame)
+        stats["gain"] = prev.gain
+        stats["model"] = "still" if still else "compensated"
+    return stats
 
 
 def debug_picture(prev: Previous, frontend: MotionFrontEnd, status: str,

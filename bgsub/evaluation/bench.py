@@ -389,7 +389,7 @@ def bench_methods(
                          f"below {_SCENE_MIN_SIZE[0]}x{_SCENE_MIN_SIZE[1]}, the smallest sample "
                          "scene, the clip is a panning random texture)")
     if frames < 1 or repeats < 1:
-        raise InputError("bench: --frames and --repeats must be at least 1")
+        raise InputError("bench: --max-frames and --repeats must be at least 1")
     if seed < 0:
         raise InputError(f"bench: the seed must be >= 0, not {seed}")
     names = list(methods) if methods else [spec.name for spec in available_engines()]

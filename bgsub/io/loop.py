@@ -62,12 +62,15 @@ class FrameResult:
     engines : mapping of str to engine
         The engines by name, for what they report after the frame (``last_motion``,
         ``last_status``, ``debug_image()``).
+    seconds : mapping of str to float
+        Each engine's time in ``apply`` for this frame, by engine name.
     """
 
     index: int
     frame: np.ndarray
     masks: Mapping[str, np.ndarray]
     engines: Mapping[str, Any]
+    seconds: Mapping[str, float] = field(default_factory=dict)
 
 
 class Consumer(ABC):
@@ -288,7 +291,8 @@ class FrameLoop:
             mask = engine.apply(frame)
             took[name] = time.perf_counter() - t0
             masks[name] = _checked_mask(mask, name, index, frame)
-        result = FrameResult(index=index, frame=frame, masks=masks, engines=self.engines)
+        result = FrameResult(index=index, frame=frame, masks=masks, engines=self.engines,
+                             seconds=took)
         for consumer in self.consumers:
             consumer.prepare(result)
         with interrupts.held():

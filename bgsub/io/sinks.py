@@ -8,7 +8,7 @@
   beside the mask (:mod:`bgsub.io.picture_sinks`).
 * :class:`MotionSink` -- the camera motion of every frame (:mod:`bgsub.io.motion_sink`).
 * ``check_*_output`` -- the checks run before anything is written (:mod:`bgsub.io.outputs`).
-* :func:`process` -- stream frames through an engine into these sinks (:mod:`bgsub.io.writers`,
+* :func:`process` -- stream frames through an engine into these sinks (:mod:`bgsub.io.pipeline`,
   over the frame loop of :mod:`bgsub.io.loop`).
 
 Every sink is a context manager that writes under a temporary name in the output's folder and
@@ -40,7 +40,7 @@ from bgsub.io.outputs import (
 )
 from bgsub.io.picture_sinks import VideoSink, VisSink, render_overlay
 from bgsub.io.sink_base import Sink
-from bgsub.io.writers import process
+from bgsub.io.pipeline import process
 
 # The names bgsub.evaluation.compare imports.
 _MASK_NAME, _PARTIAL_MASK_NAME = MASK_NAME, PARTIAL_MASK_NAME

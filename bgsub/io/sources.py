@@ -534,6 +534,11 @@ def _backend(path: Union[PathLike, int], *, start: int, stall_seconds: Optional[
     if location.is_dir():
         return text, _folder_backend(location)
     if location.is_file():
+        if location.suffix.lower() in IMAGE_EXTENSIONS:  # (OpenCV would read one frame)
+            folder = location.parent
+            raise InputError(f"{text}: is one image, not a video; give the folder of the frames "
+                             f"({folder}{os.sep}) or a quoted glob pattern "
+                             f"('{folder / ('*' + location.suffix)}')")
         return text, _VideoBackend(location)
     if glob.has_magic(text):
         return text, _glob_backend(text)

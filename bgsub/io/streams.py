@@ -146,6 +146,18 @@ def _finish_readers() -> None:
         reader.finish(timeout=30.0)
 
 
+def _no_frame_hint(url: str) -> str:
+    """Why a file over HTTP opens but gives no frame, and what to do: ``""`` for other
+    sources."""
+    if not url.lower().startswith(("http://", "https://")):
+        return ""
+    return ("; the likely cause: the server ignores byte ranges (as `python3 -m http.server` "
+            "does) and the file keeps its index at its end (an .mp4 or .mov not written for "
+            "streaming), so it cannot be read as it arrives. Serve it from a server with range "
+            "support, or give an .mkv, or a faststart .mp4: ffmpeg -i in.mp4 -c copy -movflags "
+            "+faststart out.mp4")
+
+
 class StreamBackend:
     """One live source, open from construction to the end of its one pass (or :meth:`close`).
 
@@ -178,7 +190,8 @@ class StreamBackend:
                 frame = self._next()
             if frame is None:
                 within = f" within {self.stall_seconds:g} s" if self.stalled else ""
-                raise InputError(f"{self.label}: opened, but it gave no frame{within}")
+                raise InputError(f"{self.label}: opened, but it gave no frame{within}"
+                                 + ("" if self.stalled else _no_frame_hint(text)))
         except BaseException:
             self.close()
             raise

@@ -1,5 +1,5 @@
-"""Consumers of :class:`bgsub.io.loop.FrameLoop` that write to sinks, a progress bar, and
-:func:`process`, the loop of ``bgsub run`` as one call.
+"""Consumers of :class:`bgsub.io.loop.FrameLoop` that write to sinks, and a progress bar
+(:mod:`bgsub.io.pipeline` opens the sinks of a run and chooses its writers).
 
 Each writer takes a sink and the name of the engine whose results it writes (``engine=None``:
 the loop's only engine). The loop closes the sinks when the run ends: complete, or partial but
@@ -9,16 +9,16 @@ valid after an error or interrupt (each sink says which on stderr).
 from __future__ import annotations
 
 import sys
-from typing import Any, Callable, Iterable, Mapping, Optional, Tuple
+from typing import Any, Callable, Mapping, Optional
 
 import numpy as np
 
 from bgsub.engines.base import supports
 from bgsub.errors import ProcessingError
-from bgsub.io.loop import Consumer, FrameLoop, FrameResult, RunStats
+from bgsub.io.loop import Consumer, FrameResult
 
 
-class _SinkWriter(Consumer):
+class SinkWriter(Consumer):
     """Writes one engine's results to a sink, and finishes the sink when the run ends."""
 
     needs: Optional[str] = None  # the engine attribute this writer reads
@@ -43,7 +43,7 @@ class _SinkWriter(Consumer):
         self.sink.finish(complete=complete, error=error)
 
 
-class MaskWriter(_SinkWriter):
+class MaskWriter(SinkWriter):
     """Each frame's mask into a mask sink (:func:`bgsub.io.sinks.open_mask_sink`), named by
     the frame's index. A mask the sink refuses (values other than 0 and 255) stops the run
     with a :class:`ProcessingError` naming the engine."""
@@ -56,14 +56,14 @@ class MaskWriter(_SinkWriter):
                                   f"{result.index + 1}: {err}") from None
 
 
-class VisWriter(_SinkWriter):
+class VisWriter(SinkWriter):
     """Each frame with its mask overlaid, beside the mask, into a :class:`VisSink`."""
 
     def add(self, result: FrameResult) -> None:
         self.sink.write(result.frame, result.masks[self.engine])
 
 
-class DebugImageWriter(_SinkWriter):
+class DebugImageWriter(SinkWriter):
     """The engine's ``debug_image()`` after each frame into a :class:`VideoSink`: a black
     frame where it returns None, so the video stays in step with the input."""
 
@@ -83,7 +83,7 @@ class DebugImageWriter(_SinkWriter):
             self.sink.write(self._picture)
 
 
-class MotionWriter(_SinkWriter):
+class MotionWriter(SinkWriter):
     """The engine's ``last_motion`` after each frame into a :class:`MotionSink`."""
 
     needs = "last_motion"
@@ -123,42 +123,3 @@ class FrameCallback(Consumer):
     def add(self, result: FrameResult) -> None:
         (mask,) = result.masks.values()
         self.function(result.index, mask)
-
-
-def process(frames: Iterable[Tuple[int, np.ndarray]], engine: Any, masks: Any, *,
-            vis: Any = None, flow_vis: Any = None, motion: Any = None,
-            on_frame: Optional[Callable[[int, np.ndarray], None]] = None) -> RunStats:
-    """Run ``engine`` over ``frames`` and write its masks (and pictures) to the sinks, then
-    finish the sinks.
-
-    Parameters
-    ----------
-    frames : iterable of (int, (H, W, 3) uint8)
-        ``(index, frame)`` pairs, e.g. a :class:`bgsub.io.sources.FrameSource`.
-    engine : Engine
-        Anything with OpenCV's ``apply(image) -> (H, W) uint8 mask``.
-    masks : MaskSink
-        Gets every mask, with its frame index.
-    vis : VisSink, optional
-        Gets every frame with its mask.
-    flow_vis : VideoSink, optional
-        Gets ``engine.debug_image()`` after every frame (see :class:`DebugImageWriter`).
-    motion : MotionSink, optional
-        Gets ``engine.last_motion`` after every frame.
-    on_frame : callable(index, mask), optional
-        Called after every frame is written.
-
-    Returns
-    -------
-    RunStats
-
-    The sinks are finished when the run ends, also by an error or Ctrl-C (partial but valid
-    outputs); open them in ``with`` blocks all the same, so that a failure to open a later one
-    closes the earlier ones.
-    """
-    consumers = [MaskWriter(masks)]
-    consumers += [VisWriter(vis)] if vis is not None else []
-    consumers += [DebugImageWriter(flow_vis)] if flow_vis is not None else []
-    consumers += [MotionWriter(motion)] if motion is not None else []
-    consumers += [FrameCallback(on_frame)] if on_frame is not None else []
-    return FrameLoop(engine, consumers).run(frames)

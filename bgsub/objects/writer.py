@@ -16,7 +16,6 @@ when the run ends, also after Ctrl-C: each line is whole, so the file stays vali
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 from typing import Any, List, Mapping, Optional
 
@@ -25,8 +24,8 @@ import numpy as np
 
 from bgsub.errors import OutputError
 from bgsub.io.loop import Consumer, FrameResult
-from bgsub.io.outputs import OutputClaim, check_file_output, partial_path, write_error
-from bgsub.io.sink_base import Sink
+from bgsub.io.line_sink import LineSink
+from bgsub.io.outputs import check_file_output
 from bgsub.io.writers import VisWriter
 from bgsub.objects.tracker import ObjectTracker, TrackedObject, TrackerConfig
 
@@ -56,48 +55,17 @@ def mot_lines(frame: int, objects: List[TrackedObject]) -> str:
                    for o in objects)
 
 
-class ObjectSink(Sink):
+class ObjectSink(LineSink):
     """A ``.jsonl`` or MOTChallenge ``.csv`` file of each frame's objects (see the module)."""
 
     def __init__(self, path: Any, *, overwrite: bool = False) -> None:
-        self.path = check_objects_output(path, overwrite=overwrite)
-        self._format = json_line if self.path.suffix.lower() == ".jsonl" else mot_lines
-        self._temp = partial_path(self.path)
-        self._count = 0
-        self._claim = OutputClaim(self._temp, output=self.path, overwrite=overwrite)
-        try:
-            self._file: Optional[Any] = open(self._temp, "w", encoding="utf-8")
-        except OSError as err:
-            self._claim.release()
-            raise write_error(self.path, "the objects", err) from None
-
-    @property
-    def frames_written(self) -> int:
-        return self._count
+        checked = check_objects_output(path, overwrite=overwrite)
+        self._format = json_line if checked.suffix.lower() == ".jsonl" else mot_lines
+        super().__init__(checked, what="the objects", overwrite=overwrite)
 
     def write(self, frame: int, objects: List[TrackedObject]) -> None:
         """Add frame number ``frame`` (1-based) and its objects."""
-        try:
-            self._file.write(self._format(frame, objects))
-            self._file.flush()
-        except OSError as err:
-            raise write_error(self.path, "the objects", err) from None
-        self._count += 1
-
-    def close(self) -> None:
-        if self._file is None:
-            return
-        fh, self._file = self._file, None
-        try:
-            fh.close()
-            if self._count:
-                os.replace(self._temp, self.path)
-            else:
-                os.unlink(self._temp)
-        except OSError as err:
-            raise write_error(self.path, "the objects", err) from None
-        finally:
-            self._claim.release()
+        self.write_record(self._format(frame, objects))
 
 
 class ObjectWriter(Consumer):

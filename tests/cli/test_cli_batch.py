@@ -151,8 +151,8 @@ def test_a_folder_of_videos_is_a_batch_with_side_outputs_in_folders(tmp_path, cl
 @pytest.mark.parametrize("argv, message", [
     (["-o", "OUT/masks.mkv"], "is a folder"),
     (["-o", "OUT", "--vis", "OUT/v.mp4"], "--vis of several inputs is a folder"),
-    (["-o", "OUT", "--jobs", "0"], "--jobs must be at least 1"),
-    (["-o", "OUT", "--objects", "objects.jsonl"], "--objects is for a single input"),
+    (["-o", "OUT", "--jobs", "-1"], "--jobs takes a number of inputs at once, or 0"),
+    (["-o", "OUT", "--objects", "objects.jsonl"], "--objects of several inputs is a folder"),
 ])
 def test_batch_options_are_checked_first(tmp_path, clips, bgsub_error, argv, message):
     argv = [str(a).replace("OUT", str(tmp_path / "out")) for a in argv]
@@ -280,7 +280,7 @@ def _compare_rows(folder: Path) -> list:
 def test_compare_on_two_processes_reports_what_one_does(tmp_path, dataset, capsys):
     for jobs in ("1", "2"):
         assert main(["compare", str(dataset), "-o", str(tmp_path / f"cmp{jobs}"), "--methods",
-                     "mog2,framediff", "--masks", "mkv", "--no-video", "--jobs", jobs]) == 0
+                     "mog2,framediff", "--mask-format", "mkv", "--no-video", "--jobs", jobs]) == 0
     capsys.readouterr()
     assert _compare_rows(tmp_path / "cmp1") == _compare_rows(tmp_path / "cmp2")
     files = [sorted(p.relative_to(tmp_path / f"cmp{jobs}").as_posix()

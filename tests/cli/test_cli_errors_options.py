@@ -1,6 +1,6 @@
 """The error corpus of ``bgsub run``'s options: live inputs (URL, camera, device),
-``--stall-timeout``, ``--roi``, ``--motion-in``, ``--objects``, ``--config``, ``--json``, batches,
-reruns and ``--scheduler``. Each case is refused with exit status 2 and exactly one
+``--stall-timeout``, ``--roi``, ``--motion-in``, ``--objects``, ``--stats``, ``--config``,
+``--json``, batches, reruns and ``--scheduler``. Each case is refused with exit status 2 and exactly one
 ``bgsub: error:`` line, before anything is written: no file of the corpus changes (an input
 named as an output is refused, ``--overwrite`` or not) and nothing is created."""
 
@@ -44,6 +44,8 @@ def _regions_and_configs(root: Path) -> None:
     (root / "broken.toml").write_text("history = = 3\n")
     (root / "unknown.toml").write_text("histry = 100\n")
     (root / "summary.json").write_text("{}\n")
+    (root / "configs").mkdir()
+    (root / "configs" / "v0.csv").write_text("history = 100\n")  # where --stats puts v0's
 
 
 @pytest.fixture(scope="module")
@@ -106,6 +108,11 @@ CASES = [
     (RUN + ["-m", "mog2", "--min-object-area", "5"], "--min-object-area needs --objects"),
     (RUN + ["-m", "mog2", "--objects", "{c}/good.toml", "--config", "{c}/good.toml",
             "--overwrite"], "--objects would overwrite an input"),
+    # --stats
+    (RUN + ["-m", "mog2", "--stats", "{c}/good.toml", "--config", "{c}/good.toml",
+            "--overwrite"], "--stats would overwrite an input"),
+    (RUN + ["-m", "mog2", "--stats", "{c}/clip.mkv", "--overwrite"],
+     "--stats would overwrite an input"),
     # --config
     (RUN + ["-m", "mog2", "--config", "{c}/badvalue.toml"], "takes an integer"),
     (RUN + ["--config", "{c}/broken.toml"], "not valid TOML"),
@@ -115,9 +122,10 @@ CASES = [
             "--overwrite"], "--vis would overwrite an input"),
     # --json
     (["run", "{c}/clip.mkv", "-o", "-", "-m", "mog2", "--json"], "stdout"),
-    (BATCH + ["--json"], "--json is for a single input"),
     # batch options on a single input: refused, not ignored
-    (RUN + ["-m", "mog2", "-j", "0"], "--jobs must be at least 1, not 0"),
+    (RUN + ["-m", "mog2", "-j", "0"], "--jobs is for several inputs"),
+    (RUN + ["-m", "mog2", "-j", "2"], "--jobs is for several inputs"),
+    (RUN + ["-m", "mog2", "-j", "-1"], "--jobs takes a number of inputs at once, or 0"),
     (RUN + ["-m", "mog2", "--mask-format", "png"], "--mask-format is for several inputs"),
     (RUN + ["-m", "mog2", "--summary", "{t}/s.json"], "--summary is for several inputs"),
     (RUN + ["-m", "mog2", "--scheduler", "tcp://127.0.0.1:1"], "--scheduler is for several"),
@@ -130,9 +138,13 @@ CASES = [
     (["run", "{c}/vids/v0.mkv", "{c}/odd/.bgsub-batch.mkv", "-o", "{t}/b", "-m", "mog2",
       "--mask-format", "png"], "the batch's own record folder"),
     (BATCH + ["--min-object-area", "5"], "--min-object-area needs --objects"),
-    (BATCH + ["-j", "0"], "--jobs must be at least 1"),
-    (BATCH + ["--codec", "h264"], "--codec is for a single input"),
-    (BATCH + ["--objects", "{t}/o.jsonl"], "--objects is for a single input"),
+    (BATCH + ["-j", "-1"], "--jobs takes a number of inputs at once, or 0"),
+    (BATCH + ["--objects", "{t}/o.jsonl"], "--objects of several inputs is a folder"),
+    (BATCH + ["--stats", "{t}/s.csv"], "--stats of several inputs is a folder"),
+    (BATCH + ["--stats", "{c}/vids"], "--stats is the folder of input videos"),
+    (BATCH + ["--objects", "{c}/vids"], "--objects is the folder of input videos"),
+    (BATCH + ["--config", "{c}/configs/v0.csv", "--stats", "{c}/configs", "--overwrite"],
+     "--stats would overwrite an input"),
     (["run", "{c}/vids", "-o", "{t}/b.mkv", "-m", "mog2"], "is a folder"),
     (["run", "{c}/vids", "-o", "{c}/summary.json", "-m", "mog2"], "must be a folder"),
     (["run", "{c}/vids", "-o", "{t}/b", "--motion-in", "{c}/m.npy"], "for a single input"),

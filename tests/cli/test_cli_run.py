@@ -263,7 +263,7 @@ def test_output_equal_to_input_is_refused(tmp_path, clip, capsys):
     (["--method", "no-such-method"], "unknown method"),
     (["-m", "_test_diff", "--param", "nope=1"], "no parameter"),
     (["-m", "_test_diff", "--param", "threshold=high"], "takes an integer"),
-    (["-m", "_test_diff", "--param", "threshold"], "key=value"),
+    (["-m", "_test_diff", "--param", "threshold"], "KEY=VALUE"),
     (["-m", "grbm", "--param", "stride=0"], "must be at least 1"),
     (["-m", "_test_diff", "--step", "0"], "step"),
 ])

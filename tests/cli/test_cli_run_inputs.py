@@ -178,8 +178,8 @@ def test_run_refuses_several_methods(clip, tmp_path, bgsub_error):
 @pytest.mark.parametrize("flag", ["-m", "--methods", "--method"])
 def test_compare_and_bench_take_every_spelling_of_the_methods(clip, tmp_path, flag, capsys):
     assert main(["compare", str(clip), "-o", str(tmp_path / "cmp"), flag, "mog2,framediff",
-                 "--masks", "none", "--no-video", "-q"]) == 0
-    assert main(["bench", flag, "mog2,framediff", "--size", "32x24", "--frames", "2",
+                 "--mask-format", "none", "--no-video", "-q"]) == 0
+    assert main(["bench", flag, "mog2,framediff", "--size", "32x24", "--max-frames", "2",
                  "--repeats", "1", "--json", "-q"]) == 0
     out = capsys.readouterr().out
     assert out.count("framediff") >= 2 and out.count("mog2") >= 2

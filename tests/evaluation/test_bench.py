@@ -39,7 +39,7 @@ def test_machine_is_described() -> None:
 
 
 def test_cli_json(capsys) -> None:
-    code = main(["bench", "--size", "64x48", "--frames", "2", "--repeats", "1", "--methods",
+    code = main(["bench", "--size", "64x48", "--max-frames", "2", "--repeats", "1", "--methods",
                  "framediff", "--json", "-q"])
     assert code == 0
     data = json.loads(capsys.readouterr().out)
@@ -65,7 +65,7 @@ def test_memory_of_a_thread_limited_engine_does_not_hang() -> None:
     # children do not re-run the command.
     done = subprocess.run(
         [sys.executable, "-m", "bgsub", "bench", "-m", "compensated", "--size", "64x48",
-         "--frames", "2", "--repeats", "1", "--memory", "--json"],
+         "--max-frames", "2", "--repeats", "1", "--memory", "--json"],
         capture_output=True, text=True, timeout=90)
     assert done.returncode == 0, done.stderr
     (result,) = json.loads(done.stdout)["results"]
@@ -84,7 +84,7 @@ def test_clip_shape_and_fallback_for_tiny_sizes() -> None:
 @pytest.mark.parametrize("argv, message", [
     (["bench", "--size", "64by48"], "--size"),
     (["bench", "--methods", "nosuch"], "unknown method"),
-    (["bench", "--methods", "framediff", "--frames", "0"], "at least 1"),
+    (["bench", "--methods", "framediff", "--max-frames", "0"], "at least 1"),
     (["bench", "--methods", "framediff", "--param", "framediff.nosuch=1"], "no parameter"),
 ])
 def test_bad_options_exit_2(capsys, argv, message) -> None:
@@ -101,12 +101,12 @@ def test_api_rejects_params_for_other_methods() -> None:
 @pytest.mark.parametrize("value", ["", " , "])
 def test_cli_empty_methods_is_refused_not_all(bgsub_error, value) -> None:
     # As in `bgsub compare`: an empty list is a mistake, not "every engine".
-    assert "--methods is empty" in bgsub_error(["bench", "--methods", value, "--frames", "1"])
+    assert "--methods is empty" in bgsub_error(["bench", "--methods", value, "--max-frames", "1"])
 
 
 def test_odd_sizes_are_benchmarked(capsys) -> None:
     # Nothing is written, so nothing needs even sizes: "even (video codecs need it)" was wrong.
-    assert main(["bench", "--size", "161x121", "--frames", "1", "--repeats", "1", "--methods",
+    assert main(["bench", "--size", "161x121", "--max-frames", "1", "--repeats", "1", "--methods",
                  "framediff", "-q"]) == 0
     assert "bgsub bench: 1 frame of 161x121, 1 run per method" in capsys.readouterr().out
     frames, description = make_clip(width=65, height=49, n_frames=2)

@@ -453,7 +453,7 @@ def test_overwrite_leaves_only_this_runs_outputs_and_the_users_files(
     (out / "mog2" / "keep.txt").write_text("mine too")
     # Named like an engine's output, but not in the previous report.json's list: not compare's.
     (out / "knn.mkv").write_bytes(b"mine as well")
-    assert main(argv + ["--methods", "mog2", "--overwrite", "--no-video", "--masks", "mkv"]) == 0
+    assert main(argv + ["--methods", "mog2", "--overwrite", "--no-video", "--mask-format", "mkv"]) == 0
     assert listing(out) == {*REPORTS, "mog2.mkv",
                             "notes.txt", "mog2/", "mog2/keep.txt", "knn.mkv"}
     (out / "knn.mkv").unlink()

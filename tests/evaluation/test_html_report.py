@@ -89,7 +89,7 @@ def single(tmp_path: Path) -> Path:
     sequence = write_input_sequence(tmp_path / "famA_one", n_frames=12)
     out = tmp_path / "out"
     assert main(["compare", str(sequence), "-m", ",".join(METHODS), "-o", str(out), "-q",
-                 "--skip-first", "--masks", "none"]) == 0
+                 "--skip-first", "--mask-format", "none"]) == 0
     return out
 
 
@@ -200,7 +200,7 @@ def test_no_report_option_writes_no_page(tmp_path: Path) -> None:
     sequence = write_input_sequence(tmp_path / "seq")
     out = tmp_path / "out"
     assert main(["compare", str(sequence), "-m", "framediff", "-o", str(out), "-q",
-                 "--no-report", "--no-video", "--masks", "none"]) == 0
+                 "--no-report", "--no-video", "--mask-format", "none"]) == 0
     assert not (out / "report.html").exists() and (out / "report.txt").is_file()
 
 

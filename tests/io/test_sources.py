@@ -211,10 +211,16 @@ def test_empty_file_is_not_a_video(tmp_path):
 
 
 def test_video_without_decodable_frames(tmp_path):
-    # FFmpeg opens a .jpg as a one-image "video", but this one holds no JPEG data.
-    path = tmp_path / "still.jpg"
+    # FFmpeg opens an .mjpeg as a Motion JPEG video, but this one holds no JPEG data.
+    path = tmp_path / "still.mjpeg"
     path.write_text("no jpeg here")
     assert "no frames" in _error(path)
+
+
+def test_a_single_image_is_not_a_video(tmp_path):
+    path = tmp_path / "still.jpg"
+    cv2.imwrite(str(path), np.zeros((48, 64, 3), np.uint8))
+    assert "is one image, not a video; give the folder of the frames" in _error(path)
 
 
 def test_empty_folder(tmp_path):

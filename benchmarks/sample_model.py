@@ -28,7 +28,7 @@ import numpy as np
 
 import bgsub.engines.moving
 from bgsub.background.compensated import BackgroundConfig as BackgroundParams
-from bgsub.background.compensated import warp_image as _warp
+from bgsub._util import warp_image as _warp
 
 
 class SampleBackground:

@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from conftest import write_pan_clip
+from helpers import write_pan_clip
 
 SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "profile_stages.py"
 

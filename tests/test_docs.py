@@ -14,8 +14,6 @@ from bgsub.cli import reference
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 MARKDOWN = [ROOT / "README.md", *sorted(DOCS.glob("*.md"))]
-# docs/ARCHITECTURE.md's package table keeps one row per line, some longer than 200 characters.
-_WIDE = pytest.mark.xfail(reason="ARCHITECTURE.md's package table", strict=False)
 
 pytestmark = pytest.mark.skipif(not DOCS.is_dir(), reason="docs/ is not part of an installed package")
 
@@ -24,8 +22,7 @@ def _lines(path):
     return path.read_text(encoding="utf-8").splitlines()
 
 
-@pytest.mark.parametrize("path", [pytest.param(p, marks=_WIDE) if p.name == "ARCHITECTURE.md"
-                                  else p for p in MARKDOWN], ids=lambda p: p.name)
+@pytest.mark.parametrize("path", MARKDOWN, ids=lambda p: p.name)
 def test_no_markdown_line_is_longer_than_200_characters(path):
     long = [n for n, line in enumerate(_lines(path), 1) if len(line) > 200]
     assert long == [], f"{path.name}: lines {long}"

@@ -7,7 +7,7 @@ import subprocess
 import sys
 
 import bgsub
-from conftest import write_box_clip
+from helpers import write_box_clip
 
 
 def test_dir_lists_every_public_name():

@@ -22,14 +22,15 @@ over background the model has seen is never healed this way, whatever its colour
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Optional
+from typing import Optional
 
 import cv2
 import numpy as np
 
 from bgsub.background.clamp import at_least, at_most
+from bgsub._util import fast_median, through_bgra, warp_image  # noqa: F401  (re-exported)
 from bgsub.errors import InputError, describe_shape
-from bgsub.motion.global_motion import fast_median, is_affine, is_identity
+from bgsub.motion.global_motion import is_identity
 from bgsub.settings import check_settings, setting
 
 __all__ = ["BackgroundConfig", "CompensatedBackground", "through_bgra", "warp_image"]
@@ -54,8 +55,10 @@ class BackgroundConfig:
     fg_alpha: float = setting(0.01, "learning rate of pixels called foreground (lets ghosts "
                                     "fade)", low=0, high=1)
     k_sigma: float = setting(2.0, "foreground beyond this many background standard deviations "
-                                  "...", low=0)
-    min_diff: float = setting(10.0, "... and this many gray levels (0-255)", low=0)
+                                  "(and min_diff gray levels)", low=0)
+    min_diff: float = setting(10.0, "foreground needs a difference of at least this many gray "
+                                    "levels (0-255) as well as k_sigma standard deviations",
+                              low=0)
     init_std: float = setting(12.0, "standard deviation (gray levels) of a model's first frame; "
                                     "a squared residual counts at most (4 init_std)^2 in the "
                                     "variance update, so a passing object cannot blind the "
@@ -127,6 +130,11 @@ class CompensatedBackground:
         self.seen = np.zeros(f.shape[:2], np.float32)
         self._diff = None
 
+    def restart(self, frame: np.ndarray) -> None:
+        """Start over from ``frame`` and learn it once (a new shot; the engine's restart)."""
+        self.reset(frame)
+        self.update(frame)
+
     def warp(self, matrix: np.ndarray, *, sharp: bool = False) -> None:
         """Move the model into the current frame's coordinates.
 
@@ -158,6 +166,23 @@ class CompensatedBackground:
         # a pixel half-inside inherit a lower age, which is the cautious side.
         self.age = warp_image(self.age, matrix, (w, h), cv2.INTER_LINEAR, cv2.BORDER_CONSTANT)
         self.seen = warp_image(self.seen, matrix, (w, h), cv2.INTER_LINEAR, cv2.BORDER_CONSTANT)
+
+    def forget_partly_seen(self, matrix: np.ndarray) -> None:
+        """After a frozen model's :meth:`warp` by ``matrix`` (3, 3): pixels that the previous
+        frame saw only in part (their source lies beyond its border, filled by replicating the
+        edge) lose their history, so that :meth:`update` gives them this frame.
+
+        The warp interpolates the age, so a pixel half beyond the border inherits half of its
+        neighbour's: at 1 or more it would count as learnt, and a frozen model would keep the
+        replicated edge (streaks along the border the camera moves towards).
+        """
+        if self.age is None or np.array_equal(matrix, np.eye(3)):
+            return
+        h, w = self.age.shape
+        inside = cv2.warpPerspective(np.ones((h, w), np.float32), matrix, (w, h),
+                                     flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                                     borderValue=0)
+        self.age[inside < 0.999] = 0.0
 
     def score(self, frame: np.ndarray) -> np.ndarray:
         """How far ``frame`` is from the background, in units of the decision threshold.
@@ -405,39 +430,7 @@ def _per_channel(a: np.ndarray, c: int) -> np.ndarray:
     """The ``(H, W)`` float32 ``a`` as an ``(H, W, c)`` factor for ``(H, W, c)`` arrays.
 
     For ``c > 1`` it is repeated into its own contiguous array: numpy broadcasts an
-    ``(H, W, 1)`` operand with an inner loop of only ``c`` elements, which made each of
-    :meth:`CompensatedBackground.update`'s two multiplications ~3x slower than the copy costs
+    ``(H, W, 1)`` operand with an inner loop of only ``c`` elements, which slows each of
+    :meth:`CompensatedBackground.update`'s two multiplications by more than the copy costs
     (same values either way)."""
     return a[:, :, None] if c == 1 else cv2.merge([a] * c)
-
-
-def through_bgra(resample: Callable[[np.ndarray], np.ndarray],
-                 img: np.ndarray) -> np.ndarray:
-    """``resample(img)`` for an OpenCV resampling (warp, remap) that treats channels alike: a
-    3-channel ``img`` goes through BGRA, since OpenCV's 4-channel bilinear path is about twice
-    as fast as its 3-channel one and gives the same values per channel."""
-    if img.ndim == 3 and img.shape[2] == 3:
-        return cv2.cvtColor(resample(cv2.cvtColor(img, cv2.COLOR_BGR2BGRA)), cv2.COLOR_BGRA2BGR)
-    return resample(img)
-
-
-def warp_image(img: np.ndarray, matrix: np.ndarray, size: tuple, flags: int,
-               border: int) -> np.ndarray:
-    """``img`` ((H, W) or (H, W, C) float32 or uint8) warped by the (3, 3) ``matrix`` to
-    ``size`` (W, H) with OpenCV's interpolation ``flags`` and ``border`` mode; same dtype and
-    channel count."""
-    return through_bgra(lambda each: _warp(each, matrix, size, flags, border), img)
-
-
-def _warp(img: np.ndarray, matrix: np.ndarray, size: tuple, flags: int,
-          border: int) -> np.ndarray:
-    """:func:`warp_image` in OpenCV's own channel handling."""
-    m = np.asarray(matrix, np.float64)
-    if is_affine(m):
-        # An affine motion (translation, similarity, affine): warpAffine is the same map, cheaper.
-        out = cv2.warpAffine(img, m[:2] / m[2, 2], size, flags=flags, borderMode=border,
-                             borderValue=0.0)
-    else:
-        out = cv2.warpPerspective(img, m, size, flags=flags, borderMode=border, borderValue=0.0)
-    return _channels(out, img.shape[2] if img.ndim == 3 else 1) if img.ndim == 3 else out
-

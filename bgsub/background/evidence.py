@@ -26,7 +26,7 @@ from typing import Optional
 import cv2
 import numpy as np
 
-from bgsub.background.compensated import through_bgra, warp_image
+from bgsub._util import through_bgra, warp_image
 from bgsub.errors import InputError
 from bgsub.motion.global_motion import apply_homography
 

@@ -31,7 +31,8 @@ from bgsub.background.evidence import (cell_index, cells_to_pixels, frame_eviden
                                        residual_field)
 from bgsub.background.morphology import kernel
 from bgsub.errors import InputError
-from bgsub.motion.global_motion import apply_homography, fast_median
+from bgsub._util import fast_median
+from bgsub.motion.global_motion import apply_homography
 from bgsub.settings import check_settings, setting
 
 __all__ = ["FusionConfig", "Fusion", "flow_violation_map", "fuse_masks", "clean_mask",
@@ -41,18 +42,27 @@ __all__ = ["FusionConfig", "Fusion", "flow_violation_map", "fuse_masks", "clean_
 @dataclass(frozen=True)
 class FusionConfig:
     """Settings of the foreground decision (:class:`Fusion`); each field's meaning, default and
-    bounds are in its :func:`~bgsub.settings.setting`."""
+    bounds are in its :func:`~bgsub.settings.setting`.
 
-    flow_boost: float = setting(0.8, "where local motion violates the camera's, the background "
+    The defaults are the ``grbm`` engine's. Its flow-violation evidence is dense but noisier
+    than tracked corners: weakly textured object patches read the camera's motion and would
+    damp true objects, so it leans on violations to boost rather than to damp. How noisy its
+    vectors are depends on the footage (sharp BMS-26 against blurred CDnet traffic), so a
+    violation is a disagreement of ``violation_threshold`` px or ``violation_noise`` robust
+    standard deviations of the frame's disagreements, whichever is larger (docs/BENCHMARKS.md).
+    """
+
+    flow_boost: float = setting(1.5, "where local motion violates the camera's, the background "
                                      "difference is multiplied by up to 1 + this", low=0)
-    flow_damp: float = setting(0.8, "where local motion agrees with the camera's, it is "
+    flow_damp: float = setting(0.2, "where local motion agrees with the camera's, it is "
                                     "multiplied by down to 1 - this (0 and flow_boost 0 = "
                                     "background model only)", low=0, high=1)
-    violation_threshold: float = setting(1.5, "disagreement with the camera motion (px) that "
+    violation_threshold: float = setting(0.75, "disagreement with the camera motion (px) that "
                                               "counts as a violation", low=0)
-    violation_noise: float = setting(0.0, "... or this many robust standard deviations of the "
-                                          "local vectors' disagreement, if more (0 = fixed "
-                                          "threshold)", low=0)
+    violation_noise: float = setting(4.0, "a violation is also at least this many robust "
+                                          "standard deviations of the local vectors' "
+                                          "disagreement, when that is more than "
+                                          "violation_threshold (0 = fixed threshold)", low=0)
     image_cue: float = setting(1.0, "weight of the frames' own evidence: the previous frame "
                                     "moved by the local vectors, or not at all (an object the "
                                     "camera follows), explains the current one clearly better "
@@ -82,9 +92,9 @@ class FusionConfig:
                                   "the background's around them (grow_above): the flat or "
                                   "background-coloured parts of an object (0 = off)", low=0,
                                high=64)
-    grow_above: float = setting(0.9, "... where the objects' colours explain a pixel with at "
-                                     "least this posterior probability (equal priors)",
-                                low=0.5, high=1)
+    grow_above: float = setting(0.9, "a pixel joins a blob (grow_radius) where the objects' "
+                                     "colours explain it with at least this posterior "
+                                     "probability (equal priors)", low=0.5, high=1)
     hole_share: float = setting(0.5, "regions of the frame that the mask and the frame's edges "
                                      "enclose together, up to fill_holes pixels, are filled "
                                      "when the mask holds at least this share of their "
@@ -99,42 +109,29 @@ class FusionConfig:
         check_settings(self)
 
 
+#: The default settings, whose values the module's functions take as their defaults.
+_DEFAULT = FusionConfig()
+
+
 class Fusion:
-    """The foreground decision of one frame, in three calls: :meth:`violation` (the motion
-    evidence), :meth:`mask` (fused with the background score, cleaned) and
-    :meth:`learn_slowly` (where the background model should learn at its foreground rate)."""
+    """The foreground decision of one frame: the motion evidence (:meth:`vector_evidence` and
+    :meth:`image_evidence`, which the engine makes in two threads, then :meth:`combined`),
+    :meth:`mask` (fused with the background score, cleaned), :meth:`close_by_edges`,
+    :meth:`confirmed` and :meth:`learn_slowly` (where the background model should learn at its
+    foreground rate)."""
 
     def __init__(self, config: Optional[FusionConfig] = None) -> None:
         self.config = config or FusionConfig()
 
-    def violation(self, points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
-                  matrix: np.ndarray, prev: np.ndarray, cur: np.ndarray, *,
-                  fit_weights: Optional[np.ndarray] = None,
-                  noise_scale: Optional[float] = None) -> Optional[np.ndarray]:
-        """``(h, w) float32`` in [0, 1]: the evidence that a pixel moves otherwise than the
-        camera (``matrix``, (3, 3)), the larger of two:
-
-        * the :func:`flow_violation_map` of the ``(N, 2)`` vectors ``points`` / ``disp`` with
-          ``(N,)`` ``weights`` (0.5 where no vector reports, below it where they agree);
-        * the frames' own :func:`~bgsub.background.evidence.motion_evidence_map` of ``prev`` and
-          ``cur`` ((h, w) or (h, w, 3) uint8: colour differences count), the local vectors
-          (weighted by ``fit_weights``, default ``weights``) as one alternative motion.
-
-        ``noise_scale`` replaces ``violation_noise`` (0: the vectors are one consistent motion,
-        whose spread must not raise the threshold). None when the fusion ignores motion
-        evidence. The same as :meth:`combined` of :meth:`vector_evidence` and
-        :meth:`image_evidence`, which the engine runs in two threads."""
-        image = self.image_evidence(points, disp, weights if fit_weights is None else fit_weights,
-                                    matrix, prev, cur)
-        vectors = self.vector_evidence(points, disp, weights, matrix, cur.shape[:2],
-                                       noise_scale=noise_scale)
-        return self.combined(vectors, None if image is None else image[0])
-
     def vector_evidence(self, points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
                         matrix: np.ndarray, shape: tuple, *,
                         noise_scale: Optional[float] = None) -> Optional[np.ndarray]:
-        """The :func:`flow_violation_map` part of :meth:`violation`, ``(h, w) float32`` for a
-        frame of ``shape`` (h, w); None when the fusion ignores motion evidence."""
+        """The vectors' evidence that a pixel moves otherwise than the camera (``matrix``, (3,
+        3)): the :func:`flow_violation_map` of the ``(N, 2)`` ``points`` / ``disp`` with ``(N,)``
+        ``weights``, ``(h, w) float32`` in [0, 1] for a frame of ``shape`` (h, w), 0.5 where no
+        vector reports. ``noise_scale`` replaces ``violation_noise`` (0: the vectors are one
+        consistent motion, whose spread must not raise the threshold). None when the fusion
+        ignores motion evidence."""
         c = self.config
         if c.flow_boost == 0.0 and c.flow_damp == 0.0:
             return None
@@ -145,10 +142,12 @@ class Fusion:
     def image_evidence(self, points: np.ndarray, disp: np.ndarray, fit_weights: np.ndarray,
                        matrix: np.ndarray, prev: np.ndarray,
                        cur: np.ndarray) -> Optional[tuple]:
-        """``(against, along)``, (h, w) float32 each: the frames' own part of :meth:`violation`
-        scaled by ``image_cue``, and their :func:`~bgsub.background.evidence.camera_evidence_map`
-        (for :meth:`confirmed`); None when that cue is off or the fusion ignores motion
-        evidence."""
+        """``(against, along)``, (h, w) float32 each: the frames' own evidence of motion against
+        the camera (:func:`~bgsub.background.evidence.motion_evidence_map` of ``prev`` and
+        ``cur``, (h, w) or (h, w, 3) uint8, the local vectors weighted by ``fit_weights`` as one
+        alternative motion) scaled by ``image_cue``, and their
+        :func:`~bgsub.background.evidence.camera_evidence_map` (for :meth:`confirmed`); None
+        when that cue is off or the fusion ignores motion evidence."""
         c = self.config
         if c.image_cue == 0 or (c.flow_boost == 0.0 and c.flow_damp == 0.0):
             return None
@@ -162,14 +161,16 @@ class Fusion:
     @staticmethod
     def combined(vectors: Optional[np.ndarray],
                  image: Optional[np.ndarray]) -> Optional[np.ndarray]:
-        """:meth:`violation` from its two parts: their maximum, in place in ``vectors``."""
+        """The violation map, ``(h, w) float32`` in [0, 1]: the larger of the
+        :meth:`vector_evidence` and the ``against`` part of :meth:`image_evidence`, in place in
+        ``vectors`` (``vectors`` itself when either is None)."""
         if vectors is None or image is None:
             return vectors
         return np.maximum(vectors, image, out=vectors)
 
     def mask(self, score: np.ndarray, violation: Optional[np.ndarray]) -> np.ndarray:
         """The ``(h, w) uint8`` 0/255 mask of the background ``score`` ((h, w) float32) and the
-        :meth:`violation` map: :func:`fuse_masks` with this stage's settings."""
+        violation map (:meth:`combined`): :func:`fuse_masks` with this stage's settings."""
         c = self.config
         return fuse_masks(score, violation, flow_boost=c.flow_boost, flow_damp=c.flow_damp,
                           threshold=c.threshold, min_area=c.min_area, close=c.close,
@@ -217,10 +218,10 @@ def flow_violation_map(
     *,
     weights: np.ndarray,
     shape: tuple,
-    threshold: float = 1.5,
+    threshold: float = _DEFAULT.violation_threshold,
     cell: int = 8,
     radius: int = 1,
-    noise_scale: float = 0.0,
+    noise_scale: float = _DEFAULT.violation_noise,
 ) -> np.ndarray:
     """Where local motion disagrees with the camera's.
 
@@ -290,8 +291,8 @@ def flow_violation_map(
     return cells_to_pixels(frac, (h, w), cell)
 
 
-def clean_mask(mask: np.ndarray, *, min_area: int = 30, close: int = 5,
-               fill_holes: int = 0) -> np.ndarray:
+def clean_mask(mask: np.ndarray, *, min_area: int = _DEFAULT.min_area,
+               close: int = _DEFAULT.close, fill_holes: int = _DEFAULT.fill_holes) -> np.ndarray:
     """Tidy a binary mask: 3x3 opening, ``close`` x ``close`` closing, drop small blobs, fill holes.
 
     Parameters
@@ -391,8 +392,8 @@ def _fill_holes(m: np.ndarray, max_area: int) -> None:
     """Set to 1, in place, the 0-regions of the 0/1 ``m`` ((H, W) uint8) that do not reach the
     border (4-connected), each of at most ``max_area`` pixels."""
     # Flood the background from a one-pixel frame around the image: what stays 0 is enclosed.
-    # (Three times cheaper than labelling the background, which only the rare case of more
-    # enclosed pixels than max_area in total needs.)
+    # (Cheaper than labelling the background, which only the rare case of more enclosed pixels
+    # than max_area in total needs.)
     flooded = cv2.copyMakeBorder(m, 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=0)
     cv2.floodFill(flooded, None, (0, 0), 1)
     holes = 1 - flooded[1:-1, 1:-1]
@@ -411,12 +412,12 @@ def fuse_masks(
     bg_score: np.ndarray,
     violation: Optional[np.ndarray] = None,
     *,
-    flow_boost: float = 0.0,
-    flow_damp: float = 0.0,
-    threshold: float = 1.0,
-    min_area: int = 30,
-    close: int = 5,
-    fill_holes: int = 0,
+    flow_boost: float = _DEFAULT.flow_boost,
+    flow_damp: float = _DEFAULT.flow_damp,
+    threshold: float = _DEFAULT.threshold,
+    min_area: int = _DEFAULT.min_area,
+    close: int = _DEFAULT.close,
+    fill_holes: int = _DEFAULT.fill_holes,
 ) -> np.ndarray:
     """Fuse background difference and flow violation into a clean 0/255 mask.
 

@@ -73,6 +73,10 @@ class ObjectColours:
         """Forget the objects' colours (a new shot)."""
         self._table = None
 
+    def restart(self, frame: np.ndarray) -> None:
+        """:meth:`reset` (the engine's restart from ``frame``)."""
+        self.reset()
+
     def learn(self, frame: np.ndarray, mask: np.ndarray) -> None:
         """Learn the colours of ``mask``'s objects ((h, w) uint8 0/255) and of the background
         around them in ``frame`` ((h, w, 3) or (h, w) uint8), for the next :meth:`grow`."""

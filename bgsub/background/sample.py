@@ -19,9 +19,10 @@ class SampleBackground:
     within ``radius`` gray levels (the largest channel difference). Water, foam and leaves take
     many values at one pixel: a mean and a variance describe them badly, a set of samples well.
     The model is never warped, so it serves only while the camera is still (the engines decide
-    when: :class:`bgsub.engines.parts.StillCameraSwitch`). Updates are conservative and random:
-    a background pixel replaces one of its samples with probability ``1 / subsample`` and, as
-    often, one of a neighbour's (ViBe's diffusion, which lets a ghost fade from its border).
+    when: :class:`bgsub.background.still_switch.StillCameraSwitch`). Updates are conservative and
+    random: a background pixel replaces one of its samples with probability ``1 / subsample``
+    and, as often, one of a neighbour's (ViBe's diffusion, which lets a ghost fade from its
+    border).
 
     Usage per frame: :meth:`score` the frame, then :meth:`update` with the decided mask.
     """
@@ -80,7 +81,7 @@ class SampleBackground:
         """``(H, W) uint8``: the ``min_matches``-th smallest distance of the ``(C, H, W)``
         planes ``f`` to the ``(N, C, H, W)`` ``samples``."""
         # The k smallest distances, kept sorted while the samples stream past: 2k whole-frame
-        # min/max per sample instead of a partition along the sample axis (~70x slower).
+        # min/max per sample instead of a partition along the sample axis, which is far slower.
         best = [np.full(f.shape[1:], 255, np.uint8) for _ in range(self.min_matches)]
         d = np.empty(f.shape[1:], np.uint8)
         tmp = np.empty_like(d)
@@ -125,8 +126,8 @@ class SampleBackground:
 
     def _put(self, f: np.ndarray, source: np.ndarray, target: np.ndarray) -> None:
         """Each pixel of ``f`` ((C, H, W) uint8) at the flat positions ``source`` ((K,) int)
-        replaces a random one of the samples at ``target``: one flat scatter per channel, under
-        half the time of an index that mixes a slice with arrays."""
+        replaces a random one of the samples at ``target``: one flat scatter per channel, cheaper
+        than an index that mixes a slice with arrays."""
         _, c, h, w = self.s.shape
         at = self.rng.integers(0, self.n, source.size) * (c * h * w) + target
         flat, planes = self.s.reshape(-1), f.reshape(c, -1)

@@ -86,7 +86,7 @@ def check_inputs(params: Dict[str, Any], *, width: int, height: int) -> Dict[str
         region.at((height, width))
         params["roi"] = region
     if params.get("known_motion"):
-        from bgsub.engines.parts import KnownMotion  # (a moving-camera engine's, imported)
+        from bgsub.camera.known import KnownMotion  # (a moving-camera engine's)
 
         params["known_motion"] = KnownMotion.from_value(params["known_motion"])
         check_motion_size(params["known_motion"], width=width, height=height)
@@ -94,7 +94,7 @@ def check_inputs(params: Dict[str, Any], *, width: int, height: int) -> Dict[str
 
 
 def check_motion_size(known: Any, *, width: int, height: int) -> None:
-    """Refuse a known camera motion (a :class:`~bgsub.engines.parts.KnownMotion`) with an entry
+    """Refuse a known camera motion (a :class:`~bgsub.camera.KnownMotion`) with an entry
     that moves a corner of ``width`` x ``height`` frames by more than the frame's size: no
     camera moves that far between two frames, and every mask would be empty."""
     import numpy as np

@@ -16,7 +16,6 @@ from __future__ import annotations
 import difflib
 import functools
 import importlib
-import math
 import numbers
 import threading
 from abc import ABC, abstractmethod
@@ -28,6 +27,7 @@ import numpy as np
 
 from bgsub.engines.roi import ROI_HELP, RegionOfInterest
 from bgsub.errors import InputError, describe_shape
+from bgsub.settings import Param
 
 # The built-in engines, in the order they are listed, and the module whose import registers
 # each: a command imports only its engine's (the classical engines start without the
@@ -231,93 +231,6 @@ def supports(engine: Any, capability: str) -> bool:
     if capability == "debug_image":
         return callable(getattr(engine, "debug_image", None))
     return hasattr(engine, capability)
-
-
-_C_INT_MAX = 2**31 - 1
-
-
-_KIND_NAMES = {bool: "yes/no (1/0, true/false, on/off)", int: "an integer", float: "a number",
-               str: "text"}
-
-
-@dataclass(frozen=True)
-class Param:
-    """One tunable parameter of an engine: its default (which also fixes its type) and meaning.
-
-    ``choices`` lists the allowed values of a text parameter; ``low`` / ``high`` bound a number
-    (inclusive) and ``above`` bounds it from below, exclusive (a rate that must be positive).
-    """
-
-    default: Any
-    help: str
-    choices: Optional[tuple] = None
-    low: Optional[float] = None
-    high: Optional[float] = None
-    above: Optional[float] = None
-
-    def parse(self, name: str, text: str) -> Any:
-        """Convert the command-line text ``text`` to this parameter's type."""
-        kind = type(self.default)
-        try:
-            if kind is bool:
-                lowered = text.strip().lower()
-                if lowered not in {"1", "0", "true", "false", "yes", "no", "on", "off"}:
-                    raise ValueError(text)
-                value: Any = lowered in {"1", "true", "yes", "on"}
-            elif kind is int:
-                value = int(text)
-            elif kind is float:
-                value = float(text)
-            else:
-                value = text
-        except ValueError:
-            raise InputError(f"parameter {name!r} takes {_KIND_NAMES.get(kind, kind.__name__)}, "
-                             f"not {text!r}") from None
-        self.check(name, value)
-        return value
-
-    def check(self, name: str, value: Any) -> None:
-        """Raise :class:`InputError` when ``value`` is not of this parameter's type (that of
-        its default; an integer is also a number), not finite, or outside ``choices`` or the
-        bounds. A parameter whose default is not a bool, int, float or str (a model object)
-        takes any value."""
-        self._check_type(name, value)
-        if self.choices is not None and value not in self.choices:
-            allowed = ", ".join(map(str, self.choices))
-            raise InputError(f"parameter {name!r} must be one of {allowed}, not {value!r}")
-        if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
-            return
-        if not math.isfinite(value):
-            raise InputError(f"parameter {name!r} must be a finite number, not {value!r}")
-        if isinstance(value, int) and not -_C_INT_MAX <= value <= _C_INT_MAX:
-            # Engines hand their integers to OpenCV, whose C ints cannot hold more.
-            raise InputError(f"parameter {name!r} is too large: {value}")
-        if self.low is not None and not value >= self.low:
-            raise InputError(f"parameter {name!r} must be at least {self.low:g}, not {value!r}")
-        if self.high is not None and not value <= self.high:
-            raise InputError(f"parameter {name!r} must be at most {self.high:g}, not {value!r}")
-        if self.above is not None and not value > self.above:
-            raise InputError(f"parameter {name!r} must be greater than {self.above:g}, "
-                             f"not {value!r}")
-
-
-    def _check_type(self, name: str, value: Any) -> None:
-        kind = type(self.default)
-        if kind is bool:
-            ok = isinstance(value, (bool, np.bool_))
-        elif kind is int:
-            # Not a float, even 3.0: the engines would truncate 1.7 to 1 without a word.
-            ok = isinstance(value, numbers.Integral) and not isinstance(value, (bool, np.bool_))
-        elif kind is float:
-            ok = isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
-        elif kind is str:
-            # A model parameter may also take the object itself (a GatedRBM) from Python.
-            ok = isinstance(value, str) or self.choices is None
-        else:
-            ok = True
-        if not ok:
-            raise InputError(f"parameter {name!r} takes {_KIND_NAMES.get(kind, kind.__name__)}, "
-                             f"not {value!r}")
 
 
 #: The ``learning_rate`` parameter every engine registers: the rate ``apply()`` uses when its

@@ -1,9 +1,9 @@
-"""Settings of the moving-camera engine's own stages: the camera motion
-(:class:`CameraConfig`) and the engine around the stages (:class:`EngineConfig`).
+"""Settings of the moving-camera engine around its stages (:class:`EngineConfig`).
 
-With the background model's (:class:`~bgsub.background.compensated.BackgroundConfig`), the
-fusion's (:class:`~bgsub.background.fusion.FusionConfig`) and the front end's settings they make
-an engine's parameters: :func:`engine_params` generates its ``Param`` table from their fields,
+With the camera stage's (:class:`~bgsub.camera.config.CameraConfig`), the background model's
+(:class:`~bgsub.background.compensated.BackgroundConfig`), the fusion's
+(:class:`~bgsub.background.fusion.FusionConfig`) and the front end's settings they make an
+engine's parameters: :func:`engine_params` generates its ``Param`` table from their fields,
 :func:`stage_configs` builds them back from parameter values.
 """
 
@@ -15,9 +15,9 @@ from typing import Any, Dict, Mapping
 
 from bgsub.background.compensated import BackgroundConfig
 from bgsub.background.fusion import FusionConfig
+from bgsub.camera.config import CameraConfig
 from bgsub.engines.base import LEARNING_RATE, Param
 from bgsub.errors import InputError
-from bgsub.motion.global_motion import AUTO, FIT_MODELS, MOTION_MODEL_HELP
 from bgsub.settings import check_settings, config_params, setting
 
 __all__ = ["MIN_WORK_WIDTH", "CameraConfig", "EngineConfig", "STAGES", "engine_params",
@@ -26,30 +26,6 @@ __all__ = ["MIN_WORK_WIDTH", "CameraConfig", "EngineConfig", "STAGES", "engine_p
 # The narrowest working frame: a few 13x13 patches across, so a motion can be read at all.
 # Resizing to ``work_width`` never makes the short side smaller than this either.
 MIN_WORK_WIDTH = 32
-
-
-@dataclass(frozen=True)
-class CameraConfig:
-    """The engine's camera-motion stage: the RANSAC fit to the front end's vectors (as
-    :class:`bgsub.motion.global_motion.CameraMotionConfig`), which fits it refuses and which
-    motion it holds back."""
-
-    motion_model: str = setting(AUTO, MOTION_MODEL_HELP, choices=FIT_MODELS)
-    ransac_threshold: float = setting(1.5, "RANSAC inlier distance in working-size pixels",
-                                      above=0)
-    min_extent: float = setting(0.33, "a camera motion must be seen across at least this "
-                                      "fraction of the frame's width or height; one seen only "
-                                      "on a smaller region (a textured object over a blank "
-                                      "background) is taken as the object's, and the camera as "
-                                      "still (0 = off)", low=0, high=1)
-    still_below: float = setting(0.25, "camera motion that moves no frame corner by more than "
-                                       "this (working px) is held back and added to the next "
-                                       "frame's: a still camera's sub-pixel reading noise "
-                                       "would resample (blur) the model every frame (0 = warp "
-                                       "every frame)", low=0)
-
-    def __post_init__(self) -> None:
-        check_settings(self)
 
 
 @dataclass(frozen=True)
@@ -65,12 +41,13 @@ class EngineConfig:
                                   "by a guided filter with windows of this radius (working "
                                   "px), and scaled up to the input size along them (0 = the "
                                   "fused mask, scaled up bilinearly)", low=0, high=64)
-    edge_eps: float = setting(0.001, "edge_radius's windows whose colour variance (values in "
-                                     "[0, 1]) is well below this keep the fused mask's mean "
-                                     "rather than follow the frame's edges", above=0)
-    edge_step: int = setting(2, "edge_radius's filter is fitted on the mask and frame shrunk "
-                                "by this factor and scaled back up (the fast guided filter: 2 "
-                                "fits a quarter of the pixels)", low=1, high=8)
+    edge_eps: float = setting(0.001, "guided-filter windows (edge_radius) whose colour "
+                                     "variance (values in [0, 1]) is well below this keep the "
+                                     "fused mask's mean rather than follow the frame's edges",
+                              above=0)
+    edge_step: int = setting(2, "the guided filter (edge_radius) is fitted on the mask and "
+                                "frame shrunk by this factor and scaled back up (the fast "
+                                "guided filter: 2 fits a quarter of the pixels)", low=1, high=8)
     threads: int = setting(1, "BLAS and OpenCV worker threads while a frame is processed (0 = "
                               "as configured; more threads are slower for these small frames)",
                            low=0)
@@ -91,26 +68,30 @@ class EngineConfig:
     min_contrast: float = setting(4.0, "frames whose gray standard deviation is below this are "
                                        "blank or textureless: empty mask, model kept", low=0)
     scene_cut: float = setting(0.5, "restart the model when more than this fraction of the "
-                                    "pixels with history differ from it (and cut_support "
-                                    "holds)", low=0, high=1)
-    cut_support: float = setting(0.35, "scene_cut restarts only while fewer than this fraction "
-                                       "of the motion vectors agree with the fitted motion (or "
-                                       "more than 80 % differ)", low=0, high=1)
+                                    "pixels with history differ from it while few motion "
+                                    "vectors agree with the fitted motion (cut_support)",
+                               low=0, high=1)
+    cut_support: float = setting(0.35, "a scene cut (scene_cut) needs fewer than this fraction "
+                                       "of the motion vectors to agree with the fitted motion "
+                                       "(more than 80 % of the pixels differing is a cut "
+                                       "whatever the motion)", low=0, high=1)
     still_model: float = setting(0.15, "take the camera as still, and use a never-warped sample "
                                        "background model (water, foam, leaves), while that "
                                        "model calls less than this fraction of the frame "
-                                       "foreground, with still_snr and still_versus (0 = off)",
-                                  low=0, high=1)
-    still_snr: float = setting(
-        4.0, "still_model also needs the fitted camera motion to be less than this many times "
-             "the scatter of the motion vectors about it (no rigid motion stands out)", low=0)
-    still_versus: float = setting(4.0, "still_model also needs its fraction, where the "
-                                       "compensated model is not blind, to be at most this "
-                                       "many times the fraction that one calls, plus 0.5 % (a "
-                                       "slow pan drifts the never-warped model's fine texture "
-                                       "into false foreground; 0 = no comparison)", low=0)
-    still_window: int = setting(9, "still_model's tests are medians over this many frames",
-                                low=1)
+                                       "foreground and still_snr and still_versus agree "
+                                       "(0 = off)", low=0, high=1)
+    still_snr: float = setting(4.0, "the camera is taken as still (still_model) only while the "
+                                    "fitted camera motion is less than this many times the "
+                                    "scatter of the motion vectors about it (no rigid motion "
+                                    "stands out)", low=0)
+    still_versus: float = setting(4.0, "the camera is taken as still (still_model) only while "
+                                       "the sample model calls at most this many times the "
+                                       "fraction the compensated model calls, plus 0.5 %, "
+                                       "where that one is not blind (a slow pan drifts the "
+                                       "never-warped model's fine texture into false "
+                                       "foreground; 0 = no comparison)", low=0)
+    still_window: int = setting(9, "the still-camera tests (still_model, still_snr, "
+                                   "still_versus) are medians over this many frames", low=1)
     learning_rate: float = setting(LEARNING_RATE.default, LEARNING_RATE.help,
                                    high=LEARNING_RATE.high)
 

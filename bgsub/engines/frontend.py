@@ -39,68 +39,15 @@ registers the engine that uses it::
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
 from typing import Any, ClassVar, Dict, Mapping, Optional, Tuple
 
 import numpy as np
 
-from bgsub.engines.base import Param
-from bgsub.motion.global_motion import CameraMotionConfig, GlobalMotion
-from bgsub.settings import config_params
+from bgsub.camera.config import CameraFit
+from bgsub.motion.result import NO_MOTION, MotionResult
+from bgsub.settings import Param, config_params
 
 __all__ = ["MotionResult", "MotionFrontEnd", "CameraFit", "NO_MOTION"]
-
-
-@dataclass
-class MotionResult:
-    """What a motion front end found between the previous and the current frame.
-
-    Attributes
-    ----------
-    points : (N, 2) float32
-        Positions in the previous frame (working size).
-    disp : (N, 2) float32
-        Their measured displacements.
-    weights : (N,) float32
-        Reliability (0 = unusable).
-    motion : GlobalMotion
-        The camera motion fitted to them (:class:`CameraFit`).
-    violation_weights : (N,) float32, optional
-        Reliability of each vector as evidence for the flow-violation map, when it differs
-        from ``weights`` (the gated RBM's out-of-range readings are evidence of motion, but not
-        usable by RANSAC).
-    """
-
-    points: np.ndarray
-    disp: np.ndarray
-    weights: np.ndarray
-    motion: GlobalMotion
-    violation_weights: Optional[np.ndarray] = None
-
-    @property
-    def evidence_weights(self) -> np.ndarray:
-        """``(N,) float32``: ``violation_weights`` when given, else ``weights``."""
-        return self.weights if self.violation_weights is None else self.violation_weights
-
-
-_NONE = np.zeros((0, 2), np.float32)
-#: The motion of a repeated frame: none, measured from no correspondences.
-NO_MOTION = MotionResult(_NONE, _NONE, np.zeros(0, np.float32), GlobalMotion.identity(0))
-
-
-class CameraFit:
-    """The camera-motion fit a front end applies to its vectors: RANSAC of ``motion_model``
-    with inlier distance ``threshold`` (working-size px), :class:`CameraMotionConfig`."""
-
-    def __init__(self, *, motion_model: str, threshold: float) -> None:
-        self.config = CameraMotionConfig(motion_model=motion_model, threshold=threshold)
-
-    def __call__(self, points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
-                 shape: tuple) -> GlobalMotion:
-        """The motion of ``(N, 2)`` ``points`` moved by ``disp``, with ``(N,)`` ``weights``,
-        in an ``(h, w)`` frame."""
-        return self.config.fit(points, points + disp, weights=weights,
-                               frame_size=(shape[1], shape[0]))
 
 
 class MotionFrontEnd(ABC):

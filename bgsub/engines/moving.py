@@ -3,32 +3,24 @@
 RBM's patch motion, ``compensated`` with Lucas-Kanade corner tracks; comparing them isolates the
 motion estimator. :func:`register_frontend` registers an engine for any front end.
 
-Each frame, at the working size (``work_width``; the mask is returned at the input size):
+Each frame passes six stages, at the working size (``work_width``; the mask is returned at the
+input size):
 
-1. motion: the front end measures local motion and fits the camera's (RANSAC); a fit seen on
-   only a small region is refused (:class:`~bgsub.engines.parts.SmallRegionRule`), a refused
-   one replaced by the previous frame's motion (``last_status`` says why);
-2. the motion to apply: small motion is held back (:class:`~bgsub.engines.parts.MotionHoldBack`);
-   a frozen model (``learning_rate=0``) is registered to the frame
-   (:class:`~bgsub.engines.parts.FrozenModelRegistration`);
-3. the compensated background model is warped and scores the frame, brought to the model's
-   exposure (:func:`~bgsub.engines.parts.match_exposure`), and the vectors give their
-   violation map, while the other thread makes the frames' own motion evidence
-   (:class:`~bgsub.background.fusion.Fusion`);
-4. a new shot restarts the model (:class:`~bgsub.engines.parts.SceneCut`);
-5. while the camera is still, a never-warped sample model's score of the frame as it came
-   replaces the compensated one's (:class:`~bgsub.engines.parts.StillCameraSwitch`; its
-   samples hold each pixel's range of values, and over water a global gain estimate would
-   only add the glitter's own fluctuation);
-6. fusion and clean-up give the mask, less the blobs that touch nothing of the last frame's
-   (:class:`~bgsub.engines.parts.BlobPersistence`), grown over the nearby pixels coloured like
-   the last frame's objects (:class:`~bgsub.background.object_colour.ObjectColours`), with the
-   holes it and the frame's edges enclose filled
-   (:func:`~bgsub.background.edge_holes.fill_edge_holes`); the model's update, and the learning
-   of this frame's objects' colours, is deferred to the next frame, where it runs in the second
-   thread (``overlap=1``) beside the front end;
-7. the mask is placed on the frame's own colour edges, at the input's size
-   (:func:`~bgsub.background.guided.guided_mask`, ``edge_radius``).
+1. motion: the front end measures local motion, and fits the camera's with the fit the camera
+   stage hands it (:meth:`~bgsub.camera.CameraStage.fit_for`: RANSAC, or the known motion);
+2. camera (:class:`~bgsub.camera.CameraStage`): a fit seen on only a small region is refused, a
+   refused one replaced by the previous frame's motion (``last_status`` says why), small motion
+   held back, a frozen model (``learning_rate=0``) registered to the frame;
+3. compare (:meth:`~bgsub.background.foreground.Foreground.compare`): the compensated model,
+   warped by that motion, scores the frame brought to its exposure, and the vectors give their
+   violation map, while the second thread makes the frames' own motion evidence;
+4. decide (:meth:`~bgsub.background.foreground.Foreground.decide`): a new shot restarts every
+   stage; else the still-camera switch, the fusion, blob persistence, the last objects' colours
+   and the holes the frame's edges close give the mask;
+5. learn (:meth:`~bgsub.background.foreground.Foreground.learn`): the models' update, deferred
+   to the next frame, where it runs in the second thread (``overlap=1``) beside the front end;
+6. place (:func:`place_mask`): the mask is placed on the frame's own colour edges, at the
+   input's size (:func:`~bgsub.background.guided.guided_mask`, ``edge_radius``).
 
 Frames that cannot be processed normally (blank, textureless, a scene cut) never raise: they
 return an empty mask (or, for a scene cut, restart the model) and say why in ``last_status``.
@@ -36,29 +28,35 @@ return an empty mask (or, for a scene cut, restart the model) and say why in ``l
 
 from __future__ import annotations
 
-from typing import Any, Dict, NamedTuple, Optional, Type
+from dataclasses import dataclass
+from typing import Any, Dict, Optional, Type
 
 import cv2
 import numpy as np
 
 from bgsub.background.compensated import BackgroundConfig, CompensatedBackground
+from bgsub.background.exposure import match_exposure, same_exposure
+from bgsub.background.foreground import Foreground
 from bgsub.background.fusion import Fusion, FusionConfig
 from bgsub.background.guided import guided_mask
 from bgsub.background.object_colour import ObjectColours
+from bgsub.background.persistence import BlobPersistence
+from bgsub.background.scene_cut import SceneCut
+from bgsub.background.still_switch import NoStillSwitch, StillCameraSwitch
+from bgsub.camera import KNOWN_MOTION_HELP, CameraConfig, CameraStage, KnownMotion, work_scale
 from bgsub.engines.base import (Engine, Param, check_fgmask, check_frame, check_learning_rate,
                                 opencv_keywords, register_engine)
-from bgsub.engines.config import (MIN_WORK_WIDTH, CameraConfig, EngineConfig,
-                                  engine_params, stage_configs)
-from bgsub.engines.frontend import NO_MOTION, CameraFit, MotionFrontEnd, MotionResult
-from bgsub.engines.parts import (KNOWN_MOTION_HELP, BlobPersistence, FrozenModelRegistration,
-                                 KnownMotion, MotionHoldBack, SceneCut, SmallRegionRule,
-                                 StillCameraSwitch, match_exposure, work_scale)
+from bgsub.engines.config import MIN_WORK_WIDTH, EngineConfig, engine_params, stage_configs
+from bgsub.engines.frontend import MotionFrontEnd
+from bgsub.engines.roi import WHOLE_FRAME
 from bgsub.engines.threads import SecondThread, limited_threads
 from bgsub.errors import InputError
 from bgsub.io.flowio import add_colour_wheel, draw_flow_arrows
 from bgsub.motion.global_motion import apply_homography
+from bgsub.motion.result import NO_MOTION, MotionResult
 
-__all__ = ["MovingCameraEngine", "register_frontend", "work_size", "draw_debug", "SCENE_CUT"]
+__all__ = ["MovingCameraEngine", "Previous", "register_frontend", "work_size", "draw_debug",
+           "place_mask", "SCENE_CUT"]
 
 #: ``last_status`` of a frame taken for a new shot (the model restarts from it).
 SCENE_CUT = "fallback: scene cut"
@@ -101,43 +99,72 @@ def _to_input(img: np.ndarray, in_shape: tuple, *, binary: bool = False) -> np.n
     return up
 
 
-class _Update(NamedTuple):
-    """A frame's background update, deferred to the next frame (where it runs alongside the
-    motion front end)."""
+def working_frames(image: np.ndarray, config: EngineConfig) -> tuple:
+    """``(work, smoothed, gray)``: the input ``image`` at the working size (never the caller's
+    buffer), blurred by ``smooth``, and that one's (h, w) uint8 gray image."""
+    work = _to_work(image, config.work_width)
+    if work is image:
+        # The model keeps the frame past this call (the previous frame of the next pair, the
+        # deferred update): not the caller's buffer, which a reading loop may reuse.
+        work = image.copy()
+    smoothed = _smoothed(work, config.smooth)
+    gray = smoothed if smoothed.ndim == 2 else cv2.cvtColor(smoothed, cv2.COLOR_BGR2GRAY)
+    return work, smoothed, gray
 
-    exposed: np.ndarray  # the frame at the compensated model's exposure (h, w[, 3]) uint8
-    gain: float  # what the frame was divided by to get there
-    work: np.ndarray  # the frame as it came, for the still-camera model
-    mask: np.ndarray  # (h, w) uint8 0/255: the frame's mask, copied (apply may return it) ...
-    violation: Optional[np.ndarray]  # ... and motion evidence, for Fusion.learn_slowly
-    confirmed: Optional[np.ndarray]  # (h, w) bool: Fusion.confirmed
-    rate: float  # the caller's learning rate
+
+def place_mask(mask: np.ndarray, work: np.ndarray, image: np.ndarray,
+               config: EngineConfig) -> np.ndarray:
+    """The place stage: the fused working-size ``mask`` placed on the frame's colour edges at
+    the size of the input ``image`` (:func:`~bgsub.background.guided.guided_mask`, with
+    ``work``, the frame at the working size), or with ``edge_radius`` 0 as it is, scaled up
+    bilinearly. ``(H, W) uint8`` 0/255."""
+    if config.edge_radius == 0:
+        return _to_input(mask, image.shape, binary=True)
+    full = work if work.shape == image.shape else image
+    return guided_mask(mask, work, full, radius=config.edge_radius, eps=config.edge_eps,
+                       step=config.edge_step)
+
+
+def to_input_motion(matrix: np.ndarray, in_shape: tuple, work_width: int) -> np.ndarray:
+    """A working-size motion ``matrix`` (3, 3) in the pixel coordinates of input frames of
+    ``in_shape`` ``(H, W, ...)`` (a copy)."""
+    h, w = in_shape[:2]
+    ww, wh = work_size(w, h, work_width)
+    if (ww, wh) == (w, h):
+        return matrix.copy()
+    scale = work_scale((h, w), (wh, ww))
+    return np.linalg.solve(scale, matrix @ scale)
+
+
+@dataclass
+class Previous:
+    """What the engine keeps of the frames before the current one: the last frame it took (the
+    first of the next pair) and what it saw of the last frame it was given."""
+
+    data: Any = None  # the last frame taken, as the front end keeps it (None: no frame yet)
+    gray: Optional[np.ndarray] = None  # ... its (h, w) uint8 gray image
+    work: Optional[np.ndarray] = None  # ... and its working-size frame as the stages saw it
+    result: Optional[MotionResult] = None  # the motion measured for the last frame given
+    applied: Optional[np.ndarray] = None  # (3, 3): what it warped the model by
+    gain: Optional[float] = None  # its exposure gain (set where a model scored it)
+    frame: Optional[np.ndarray] = None  # the last frame given, at the working size
+    mask: Optional[np.ndarray] = None  # ... and its (h, w) uint8 0/255 mask (working size)
 
 
 class MovingCameraEngine(Engine):
-    """A background subtractor for a moving camera, built on the motion front end ``frontend``.
-
-    The stage settings are keyword-only frozen dataclasses; each left out takes its defaults,
-    with those the front end replaces (``frontend.stage_defaults``), as ``create_engine`` does
-    (a stage given is used as it is: ``create_engine(name, **params)`` keeps the front end's
-    defaults of the settings not named)::
+    """A background subtractor for a moving camera, built on the motion front end ``frontend``;
+    a frame passes its stages motion, camera, compare, decide, learn (deferred to the next
+    frame) and place (the module docstring). A stage setting left out takes its defaults, with
+    those the front end replaces (``frontend.stage_defaults``)::
 
         engine = MovingCameraEngine(LucasKanadeFrontEnd(LucasKanadeConfig(max_corners=800)),
                                     fusion=FusionConfig(min_area=50))
 
-    Attributes
-    ----------
-    last_status : str
-        ``"ok"`` or ``"fallback: <reason>"`` for the last frame.
-    frontend, config, camera, bg, fusion
-        The front end, the engine's and the camera stage's settings, the compensated
-        background model and the fusion stage.
-    small_region, hold_back, registration, scene_cut, persistence, object_colours, still_switch,
-    known_motion
-        The special behaviours (:mod:`bgsub.engines.parts`; ``still_switch`` None when
-        ``still_model`` is 0, ``known_motion`` None when the camera motion is fitted). The
-        region of interest (``roi``, :mod:`bgsub.engines.roi`) also leaves the vectors outside
-        it out of the fit.
+    Attributes: ``last_status`` (``"ok"`` or ``"fallback: <reason>"`` for the last frame),
+    ``frontend``, ``config`` (:class:`EngineConfig`), ``camera`` (the camera stage,
+    :class:`~bgsub.camera.CameraStage`), ``foreground`` (the compare, decide and learn stages,
+    :class:`~bgsub.background.foreground.Foreground`) with its compensated background model
+    ``bg``, ``fusion`` and ``still_switch``, and ``previous`` (:class:`Previous`).
     """
 
     def __init__(self, frontend: MotionFrontEnd, *, engine: Optional[EngineConfig] = None,
@@ -148,36 +175,25 @@ class MovingCameraEngine(Engine):
         defaults = stage_configs({}, frontend.stage_defaults)
         self.frontend = frontend
         self.name = frontend.name or "moving-camera"
-        self.config = engine or defaults[EngineConfig]
-        self.camera = camera or defaults[CameraConfig]
+        self.config = c = engine or defaults[EngineConfig]
+        self.camera = CameraStage(camera or defaults[CameraConfig], known_motion)
         self.bg = CompensatedBackground(background or defaults[BackgroundConfig])
         self.fusion = Fusion(fusion or defaults[FusionConfig])
-        c, cam = self.config, self.camera
-        self.fit = CameraFit(motion_model=cam.motion_model, threshold=cam.ransac_threshold)
-        self.small_region = SmallRegionRule(cam.min_extent)
-        self.hold_back = MotionHoldBack(cam.still_below)
-        self.registration = FrozenModelRegistration(cam.motion_model)
-        self.scene_cut = SceneCut(c.scene_cut, c.cut_support)
-        self.persistence = BlobPersistence(self.fusion.config.persist)
-        self.object_colours = ObjectColours(radius=self.fusion.config.grow_radius,
-                                            above=self.fusion.config.grow_above)
         self.still_switch = (StillCameraSwitch(still_model=c.still_model, still_snr=c.still_snr,
                                                window=c.still_window,
                                                still_versus=c.still_versus)
-                             if c.still_model > 0 else None)
+                             if c.still_model > 0 else NoStillSwitch())
         self.thread = SecondThread(overlap=c.overlap, name=self.name)
-        self.known_motion = known_motion
+        self.foreground = Foreground(
+            self.bg, self.fusion, still_switch=self.still_switch,
+            exposure=match_exposure if c.match_exposure else same_exposure,
+            scene_cut=SceneCut(c.scene_cut, c.cut_support),
+            persistence=BlobPersistence(self.fusion.config.persist),
+            object_colours=ObjectColours(radius=self.fusion.config.grow_radius,
+                                         above=self.fusion.config.grow_above),
+            alongside=self.thread.alongside)
         self.last_status = "ok"
-        self._prev: Any = None  # the previous frame as the front end keeps it
-        self._prev_gray: Optional[np.ndarray] = None
-        self._prev_work: Optional[np.ndarray] = None
-        self._prev_motion: Optional[np.ndarray] = None  # last good fit, (3, 3)
-        self._pending: Optional[_Update] = None
-        self._last: Optional[MotionResult] = None
-        self._last_matrix: Optional[np.ndarray] = None  # what the last frame applied
-        self._last_gain: Optional[float] = None  # the last frame's exposure gain
-        self._last_frame: Optional[np.ndarray] = None
-        self._last_mask: Optional[np.ndarray] = None
+        self.previous = Previous()
         self._in_shape: Optional[tuple] = None  # the input frames' (H, W) or (H, W, 3)
 
     # ------------------------------------------------------------------ Engine API
@@ -189,36 +205,16 @@ class MovingCameraEngine(Engine):
         rate = check_learning_rate(learning_rate, default=self.config.learning_rate)
         check_fgmask(fgmask, image.shape[:2])
         self._in_shape = image.shape
-        if self.known_motion is not None:
-            self.known_motion.next_frame()
+        self.camera.known.next_frame()
         with limited_threads(self.config.threads):
-            work = _to_work(image, self.config.work_width)
-            if work is image:
-                # The model keeps the frame past this call (the previous frame of the next pair,
-                # the deferred update): not the caller's buffer, which a reading loop may reuse.
-                work = image.copy()
-            smoothed = _smoothed(work, self.config.smooth)
-            gray = (smoothed if smoothed.ndim == 2
-                    else cv2.cvtColor(smoothed, cv2.COLOR_BGR2GRAY))
+            work, smoothed, gray = working_frames(image, self.config)
             mask = self._step(smoothed, gray, rate)
-            out = self._final_mask(mask, work, image)
-        self._last_frame, self._last_mask = work, mask
+            out = place_mask(mask, work, image, self.config)
+        self.previous.frame, self.previous.mask = work, mask
         if fgmask is not None:
             fgmask[...] = out
             return fgmask
         return out
-
-    def _final_mask(self, mask: np.ndarray, work: np.ndarray, image: np.ndarray) -> np.ndarray:
-        """The fused working-size ``mask`` as returned: placed on the frame's colour edges at
-        the size of the input ``image`` (:func:`~bgsub.background.guided.guided_mask`, with
-        ``work``, the frame at the working size), or with ``edge_radius`` 0 as it is, scaled up
-        bilinearly. ``(H, W) uint8`` 0/255."""
-        c = self.config
-        if c.edge_radius == 0:
-            return _to_input(mask, image.shape, binary=True)
-        full = work if work.shape == image.shape else image
-        return guided_mask(mask, work, full, radius=c.edge_radius, eps=c.edge_eps,
-                           step=c.edge_step)
 
     def close(self) -> None:
         """Stop the engine's second thread (``overlap=1``) now rather than when the engine is
@@ -228,163 +224,96 @@ class MovingCameraEngine(Engine):
     # ------------------------------------------------------------------ one frame
 
     def _step(self, work: np.ndarray, gray: np.ndarray, rate: float) -> np.ndarray:
-        """One frame at the working size, the stages of the module docstring: ``work`` is the
-        frame (BGR or gray uint8, blurred by ``smooth``), ``gray`` its (h, w) uint8 gray image,
-        ``rate`` the checked learning rate. Returns the (h, w) uint8 0/255 mask."""
-        self._last = self._last_matrix = self._last_gain = None
+        """One frame at the working size through the stages: ``work`` is the frame (BGR or
+        gray uint8, blurred by ``smooth``), ``gray`` its (h, w) uint8 gray image, ``rate`` the
+        checked learning rate (0: a frozen model). Returns the (h, w) uint8 0/255 mask."""
+        prev = self.previous
+        prev.result = prev.applied = prev.gain = None
         empty = np.zeros(gray.shape, np.uint8)
         if float(cv2.meanStdDev(gray)[1][0, 0]) < self.config.min_contrast:
             # Blank or textureless frame: no motion can be measured; keep the model as it is.
-            self._finish_update()
+            self.foreground.learn()
             self.last_status = "fallback: blank or textureless frame"
             return empty
-        if self._prev is None:
+        if prev.data is None:
             self.frontend.check_size(gray)
-            self._restart(work, gray)
-            self._last_matrix = np.eye(3)  # no previous frame
+            self._restart(work, gray, self.frontend.frame_data(gray))
+            prev.applied = np.eye(3)  # no previous frame
             self.last_status = "ok"
             return empty
+        frozen = rate == 0.0
         cur = self.frontend.frame_data(gray)
-        result, refused = self.small_region.check(self._measure(cur, gray), gray.shape)
-        self._last = result
-        matrix, status = self._camera_matrix(result, refused)
-        applied = self._to_apply(matrix, gray, register=rate == 0.0 and result.motion.ok)
-        score, violation, along, exposed = self._compare(work, gray, result, matrix, applied,
-                                                         rate, fixed_threshold=refused)
-        unseen = self.bg.age < self.bg.config.min_age
-        if self.roi is not None:  # (what changes outside the region is no new shot)
-            unseen = unseen | ~self.roi.at(gray.shape)
-        if self.scene_cut.is_cut(score, unseen, result):
+        seen = self.camera.decide(self._motion(cur, gray), gray, self.bg, frozen=frozen)
+        prev.result = seen.result
+        compared = self.foreground.compare(work, prev.work, seen.result, seen.matrix,
+                                           seen.applied, frozen=frozen, fixed=seen.refused)
+        young = self._region.unwatched(self.foreground.young())
+        if self.foreground.is_cut(compared, seen.result, young):
             self._restart(work, gray, cur)
             self.last_status = SCENE_CUT
             return empty
-        self._last_matrix, self._last_gain = applied, float(exposed[1])
-        if self.still_switch is not None:
-            still_score = self.still_switch.judge(work, result, compensated=self.bg,
-                                                 compensated_score=score)
-            score = score if still_score is None else still_score
-        mask = self.persistence.filter(self.fusion.mask(score, violation), matrix)
-        mask = self.object_colours.grow(mask, work)
-        mask = self.fusion.close_by_edges(mask, gray)
-        # learn_slowly's closing is left to the update, which the second thread runs.
-        self._pending = _Update(*exposed, work, mask.copy(), violation,
-                                self.fusion.confirmed(mask, violation, along), rate)
-        self._prev, self._prev_gray = cur, gray
-        self._prev_work = work
-        if result.motion.ok:
-            self._prev_motion = result.motion.matrix
-        self.last_status = status
+        prev.applied, prev.gain = seen.applied, float(compared.gain)
+        mask = self.foreground.decide(work, gray, seen.result, seen.matrix, compared, rate)
+        prev.data, prev.gray, prev.work = cur, gray, work
+        self.last_status = seen.status
         return mask
 
-    def _measure(self, cur: Any, gray: np.ndarray) -> MotionResult:
-        """The front end's motion from the previous frame to ``cur``, while the second thread
-        finishes the last frame's update and prepares ``cur`` for the next pair."""
-        fit, prior = self._camera_fit(gray.shape)
-        with self.thread.alongside(self._finish_update, lambda: self.frontend.prepare(cur)):
-            if np.array_equal(gray, self._prev_gray):
+    @property
+    def _region(self) -> Any:
+        """The region of interest, or :data:`~bgsub.engines.roi.WHOLE_FRAME`."""
+        return self.roi or WHOLE_FRAME
+
+    def _motion(self, cur: Any, gray: np.ndarray) -> MotionResult:
+        """The motion stage: the front end's motion from the previous frame to ``cur``, while
+        the second thread applies the last frame's update and prepares ``cur`` for the next
+        pair; over the region of interest's vectors only."""
+        fit, prior = self.camera.fit_for(self._in_shape, gray.shape)
+        with self.thread.alongside(self.foreground.learn, lambda: self.frontend.prepare(cur)):
+            if np.array_equal(gray, self.previous.gray):
                 # A repeated frame (a frame-rate conversion's duplicate, a paused stream): the
                 # camera did not move, whatever a noisy reading would say; a frozen model
                 # would otherwise drift by that reading's error.
                 return NO_MOTION
-            result = self.frontend.measure(self._prev, cur, prior=prior, fit=fit)
-        return result if self.roi is None else self.roi.restrict(result, gray.shape)
+            result = self.frontend.measure(self.previous.data, cur, prior=prior,
+                                           fit=self._region.restrict_fit(fit))
+        return self._region.restrict(result, gray.shape)
 
-    def _camera_fit(self, shape: tuple) -> tuple:
-        """``(fit, prior)`` for a frame of working ``shape``: the RANSAC fit and the last good
-        motion, or the known motion as both; over the region of interest's vectors only."""
-        fit, prior = self.fit, self._prev_motion
-        known = self.known_motion and self.known_motion.matrix(self._in_shape, shape)
-        if known is not None:
-            fit, prior = KnownMotion.fit(known, self.camera.ransac_threshold), known
-        return (fit, prior) if self.roi is None else (self.roi.restrict_fit(fit), prior)
-
-    def _camera_matrix(self, result: MotionResult, refused: bool) -> tuple:
-        """``(matrix, status)``: the fit, or for a refused fit the previous frame's motion (the
-        identity when refused for its small region: the camera is taken as still)."""
-        if result.motion.ok:
-            return result.motion.matrix, "ok"
-        status = f"fallback: {result.motion.reason}"
-        if refused or self._prev_motion is None:
-            return np.eye(3), status
-        return self._prev_motion, status
-
-    def _to_apply(self, matrix: np.ndarray, gray: np.ndarray, *, register: bool) -> np.ndarray:
-        """The motion (3, 3) to warp the model by: this frame's ``matrix`` with what earlier
-        frames held back, registered to a frozen model when ``register``."""
-        total = self.hold_back.total(matrix)
-        if register:
-            total = self.registration.register(
-                total, gray, self.bg, small=self.hold_back.below(total, gray.shape))
-        return self.hold_back.release(total, gray.shape)
-
-    def _compare(self, work: np.ndarray, gray: np.ndarray, result: MotionResult,
-                 matrix: np.ndarray, applied: np.ndarray, rate: float, *,
-                 fixed_threshold: bool) -> tuple:
-        """``(score, violation, along, exposed)``: the background model, warped by ``applied``,
-        scores the frame brought to its exposure (``exposed``, the ``(frame, gain)`` of
-        :func:`match_exposure` with ``match_exposure``, else ``(work, 1.0)``) and the vectors
-        of ``result`` give their violation map, while the second thread makes the frames' own
-        evidence (against the camera, and ``along`` it: the camera evidence, or None) from the
-        frames as they came, both against the camera's ``matrix`` (the vectors' with the fixed
-        violation threshold when ``fixed_threshold``: a refused region's vectors are one
-        consistent motion, not noise about the camera's)."""
-        image: list = []
-        prev = self._prev_work
-
-        def evidence() -> None:
-            image.append(self.fusion.image_evidence(result.points, result.disp, result.weights,
-                                                    matrix, prev, work))
-
-        # The frames' evidence is the longer job: the vectors' map is made in this thread.
-        with self.thread.alongside(evidence):
-            self.bg.warp(applied, sharp=rate == 0.0)
-            if rate == 0.0:
-                self.registration.forget_unseen(self.bg, applied)
-            exposed = match_exposure(work, self.bg) if self.config.match_exposure else (work, 1.0)
-            score = self.bg.score(exposed[0])
-            vectors = self.fusion.vector_evidence(
-                result.points, result.disp, result.evidence_weights, matrix, work.shape[:2],
-                noise_scale=0.0 if fixed_threshold else None)
-        against, along = image[0] if image[0] is not None else (None, None)
-        return score, self.fusion.combined(vectors, against), along, exposed
-
-    def _finish_update(self) -> None:
-        """Apply the deferred background update of the last frame, if any."""
-        if self._pending is not None:
-            u, self._pending = self._pending, None
-            slow = self.fusion.learn_slowly(u.mask, u.violation)
-            self.object_colours.learn(u.work, u.mask)
-            self.bg.update(u.exposed, slow, u.rate, exposure=u.gain, confirmed=u.confirmed)
-            if self.still_switch is not None:
-                self.still_switch.update(u.work, slow, u.rate)
-
-    def _restart(self, work: np.ndarray, gray: np.ndarray, cur: Any = None) -> None:
-        self._pending = None
-        self.persistence.reset()
-        self.object_colours.reset()
-        self.bg.reset(work)
-        self.bg.update(work)
-        if self.still_switch is not None:
-            self.still_switch.reset(work)
-        self._prev = cur if cur is not None else self.frontend.frame_data(gray)
-        self._prev_gray = gray
-        self._prev_work = work
-        self._prev_motion = None
-        self.hold_back.reset()
+    def _restart(self, work: np.ndarray, gray: np.ndarray, data: Any) -> None:
+        """Start every stage over from ``work`` (the frame; ``gray`` its gray image, ``data``
+        what the front end keeps of it): the first frame, a new shot."""
+        for stage in (self.foreground, self.camera):
+            stage.restart(work)
+        self.previous.data, self.previous.gray, self.previous.work = data, gray, work
 
     # ------------------------------------------------------------------ what the engine saw
 
     @property
+    def fit(self) -> Any:
+        """The camera stage's RANSAC fit (:class:`~bgsub.camera.CameraFit`), which a caller
+        may replace."""
+        return self.camera.fit
+
+    @fit.setter
+    def fit(self, fit: Any) -> None:
+        self.camera.fit = fit
+
+    @property
+    def known_motion(self) -> Any:
+        """The camera motion given (:class:`~bgsub.camera.KnownMotion`), or the stage's null
+        one (every frame fitted)."""
+        return self.camera.known
+
+    @property
     def camera_still(self) -> bool:
         """Whether the last frame was taken as seen by a still camera (``still_model``)."""
-        return self.still_switch is not None and self.still_switch.camera_still
+        return self.still_switch.camera_still
 
     @property
     def last_result(self) -> Optional[MotionResult]:
         """What the front end measured for the last frame (working-size pixels; a fit the
         small-region rule refused shows as refused), or None where it measured nothing (the
         first, a blank frame)."""
-        return self._last
+        return self.previous.result
 
     @property
     def last_motion(self) -> Optional[np.ndarray]:
@@ -397,15 +326,10 @@ class MovingCameraEngine(Engine):
         by ``still_below`` px: that motion is then applied with a later frame's, so the
         product of the matrices is the camera's path. None where the engine measured none (a
         blank frame, a scene cut) and before the first frame."""
-        matrix = self._last_matrix
+        matrix = self.previous.applied
         if matrix is None or self._in_shape is None:
             return None
-        h, w = self._in_shape[:2]
-        ww, wh = work_size(w, h, self.config.work_width)
-        if (ww, wh) == (w, h):
-            return matrix.copy()
-        scale = work_scale((h, w), (wh, ww))
-        return np.linalg.solve(scale, matrix @ scale)
+        return to_input_motion(matrix, self._in_shape, self.config.work_width)
 
     def frame_stats(self) -> Dict[str, Any]:
         """What the engine saw of the last frame, for per-frame statistics (None where it has no
@@ -414,34 +338,18 @@ class MovingCameraEngine(Engine):
         ``status``: :attr:`last_status`; ``dx``, ``dy``: where :attr:`last_motion` (the motion
         as applied, as ``--motion`` writes it) moved the frame's centre (input pixels);
         ``rotation`` (degrees) and ``scale`` of that motion's linear part; ``inliers`` and
-        ``vectors``: the motion vectors that agree with the fit, and all the front end measured;
-        ``gain``: what the frame was divided by to match the model's exposure (1.0 without
-        ``match_exposure``); ``model``: ``"still"`` or ``"compensated"``, the background model
-        that scored the frame.
+        ``vectors``: the motion vectors that agree with the fit, and all the front end
+        measured; ``gain``: what the frame was divided by to match the model's exposure (1.0
+        without ``match_exposure``); ``model``: ``"still"`` or ``"compensated"``, the
+        background model that scored the frame.
         """
-        stats: Dict[str, Any] = dict.fromkeys(
-            ("dx", "dy", "rotation", "scale", "inliers", "vectors", "gain", "model"))
-        stats["status"] = self.last_status
-        matrix = self.last_motion
-        if matrix is not None and self._last is not None:  # (the first frame measured none)
-            h, w = self._in_shape[:2]
-            centre = np.array([(w - 1) / 2.0, (h - 1) / 2.0, 1.0])
-            moved = matrix @ centre
-            stats["dx"], stats["dy"] = (moved[:2] / moved[2] - centre[:2]).tolist()
-            stats["rotation"] = float(np.degrees(np.arctan2(matrix[1, 0], matrix[0, 0])))
-            stats["scale"] = float(np.sqrt(abs(np.linalg.det(matrix[:2, :2]))))
-        if self._last is not None:
-            stats["inliers"] = self._last.motion.n_inliers
-            stats["vectors"] = int(len(self._last.points))
-        if self._last_gain is not None:  # (set only where a model scored the frame)
-            stats["gain"] = self._last_gain
-            stats["model"] = "still" if self.camera_still else "compensated"
-        return stats
+        return frame_stats(self.previous, self.last_motion, self._in_shape, self.last_status,
+                           still=self.camera_still)
 
     def get_background_image(self) -> Optional[np.ndarray]:
         """The background model's mean in the current frame's coordinates, at the input size
         (like the input: gray or BGR uint8), or None before the first frame."""
-        self._finish_update()
+        self.foreground.learn()
         model = self.still_switch.model if self.camera_still else self.bg
         img = model.background_image()
         if img is None or self._in_shape is None:
@@ -454,18 +362,47 @@ class MovingCameraEngine(Engine):
         foreground mask tints the frame magenta; a front end with a colour picture of its motion
         has it blended in, with its colour-wheel legend in the bottom-right corner.
         ``(H, W, 3) uint8``, None before two frames."""
-        if self._last_frame is None or self._last is None:
+        prev = self.previous
+        if prev.frame is None or prev.result is None:
             return None
-        res = self._last
-        colour = None if res is NO_MOTION else self.frontend.flow_colour(
-            self._last_frame.shape[:2])
-        canvas = _to_input(draw_debug(self._last_frame, self._last_mask, res, colour,
-                                      self.last_status), self._in_shape)
-        scale = self.frontend.colour_scale()
-        if colour is None or scale is None:
-            return canvas
-        # The legend speaks of the picture's pixels: the input's, not the working size's.
-        return add_colour_wheel(canvas, scale * canvas.shape[1] / colour.shape[1])
+        return debug_picture(prev, self.frontend, self.last_status, self._in_shape)
+
+
+def frame_stats(prev: Previous, motion: Optional[np.ndarray], in_shape: Optional[tuple],
+                status: str, *, still: bool) -> Dict[str, Any]:
+    """:meth:`MovingCameraEngine.frame_stats` of the last frame ``prev`` (:class:`Previous`),
+    whose applied ``motion`` (3, 3) is in the pixels of input frames of ``in_shape``."""
+    stats: Dict[str, Any] = dict.fromkeys(
+        ("dx", "dy", "rotation", "scale", "inliers", "vectors", "gain", "model"))
+    stats["status"] = status
+    if motion is not None and prev.result is not None:  # (the first frame measured none)
+        h, w = in_shape[:2]
+        centre = np.array([(w - 1) / 2.0, (h - 1) / 2.0, 1.0])
+        moved = motion @ centre
+        stats["dx"], stats["dy"] = (moved[:2] / moved[2] - centre[:2]).tolist()
+        stats["rotation"] = float(np.degrees(np.arctan2(motion[1, 0], motion[0, 0])))
+        stats["scale"] = float(np.sqrt(abs(np.linalg.det(motion[:2, :2]))))
+    if prev.result is not None:
+        stats["inliers"] = prev.result.motion.n_inliers
+        stats["vectors"] = int(len(prev.result.points))
+    if prev.gain is not None:  # (set only where a model scored the frame)
+        stats["gain"] = prev.gain
+        stats["model"] = "still" if still else "compensated"
+    return stats
+
+
+def debug_picture(prev: Previous, frontend: MotionFrontEnd, status: str,
+                  in_shape: tuple) -> np.ndarray:
+    """:meth:`MovingCameraEngine.debug_image` of the last frame ``prev`` (:class:`Previous`,
+    with a frame and a result) seen through ``frontend``, with ``status`` written, at the size
+    of ``in_shape``: ``(H, W, 3) uint8``."""
+    colour = None if prev.result is NO_MOTION else frontend.flow_colour(prev.frame.shape[:2])
+    canvas = _to_input(draw_debug(prev.frame, prev.mask, prev.result, colour, status), in_shape)
+    scale = frontend.colour_scale()
+    if colour is None or scale is None:
+        return canvas
+    # The legend speaks of the picture's pixels: the input's, not the working size's.
+    return add_colour_wheel(canvas, scale * canvas.shape[1] / colour.shape[1])
 
 
 def draw_debug(frame: np.ndarray, mask: Optional[np.ndarray], res: MotionResult,

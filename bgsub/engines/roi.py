@@ -20,7 +20,7 @@ import numpy as np
 
 from bgsub.errors import InputError
 
-__all__ = ["RegionOfInterest", "ROI_HELP"]
+__all__ = ["RegionOfInterest", "WholeFrame", "WHOLE_FRAME", "ROI_HELP"]
 
 #: What the ``roi`` parameter every engine takes means (``bgsub methods``).
 ROI_HELP = ("region of interest: a mask image (white = watched; the frames' size or their "
@@ -130,7 +130,7 @@ class RegionOfInterest:
         return np.where(self.inside(points, shape), weights, 0).astype(np.float32)
 
     def restrict(self, result: Any, shape: tuple) -> Any:
-        """A front end's :class:`~bgsub.engines.frontend.MotionResult` in an ``(h, w)`` frame
+        """A front end's :class:`~bgsub.motion.result.MotionResult` in an ``(h, w)`` frame
         with the vectors outside the region unused (weight and evidence weight 0)."""
         if not len(result.points):
             return result
@@ -139,3 +139,29 @@ class RegionOfInterest:
         return dataclasses.replace(result, weights=self.weights(result.points, result.weights,
                                                                 shape),
                                    violation_weights=evidence)
+
+    def unwatched(self, young: np.ndarray) -> np.ndarray:
+        """``young`` ((h, w) bool) with every pixel outside the region set (``young | ~at``):
+        what changes there is no new shot."""
+        return young | ~self.at(young.shape)
+
+
+class WholeFrame:
+    """No region of interest: the whole frame is watched (what an engine uses for ``roi``
+    None)."""
+
+    @staticmethod
+    def restrict_fit(fit: Callable[..., Any]) -> Callable[..., Any]:
+        return fit
+
+    @staticmethod
+    def restrict(result: Any, shape: tuple) -> Any:
+        return result
+
+    @staticmethod
+    def unwatched(young: np.ndarray) -> np.ndarray:
+        return young
+
+
+#: The region of interest of an engine without one.
+WHOLE_FRAME = WholeFrame()

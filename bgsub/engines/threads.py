@@ -13,8 +13,8 @@ same ``threads`` value.
 Every frame allocates and frees a few dozen frame-sized arrays in each thread. glibc's malloc
 returns such blocks to the kernel when they are freed (above its dynamic mmap threshold, and
 whenever a thread's arena has more than its trim threshold free at the top), and the next
-frame's arrays fault their pages in again: about 2,000 page faults and 5 ms of system time per
-320x240 frame in the second thread. :func:`reuse_freed_memory` (called when a second thread
+frame's arrays fault their pages in again, thousands of page faults a frame in the second
+thread. :func:`reuse_freed_memory` (called when a second thread
 starts, and by the command line) asks malloc to keep freed blocks for reuse instead.
 """
 

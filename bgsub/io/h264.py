@@ -28,7 +28,7 @@ CHOOSABLE_SUFFIXES = (".mp4", ".mov")
 #: What to install for H.264, as said in messages.
 H264_EXTRA = "pip install 'bgsub[h264]' (PyAV)"
 
-# libx264's default quality; the "veryfast" preset encodes about 4x faster than the default
+# libx264's default quality; the "veryfast" preset encodes much faster than the default
 # "medium" at the same size (docs/BENCHMARKS.md).
 _X264_OPTIONS = {"crf": "23", "preset": "veryfast"}
 

@@ -119,7 +119,7 @@ def render_overlay(frame: np.ndarray, mask: np.ndarray, *,
     foreground = (mask > 0).astype(np.uint8)
     tinted = cv2.addWeighted(frame, 1.0 - alpha, np.full_like(frame, color), alpha, 0.0)
     overlay = frame.copy()
-    cv2.copyTo(tinted, foreground, overlay)  # tint only under the mask (10x faster than np.where)
+    cv2.copyTo(tinted, foreground, overlay)  # tint only under the mask (cheaper than np.where)
     contours, _ = cv2.findContours(foreground, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     cv2.drawContours(overlay, contours, -1, color, 1, cv2.LINE_AA)
     return np.hstack([overlay, cv2.cvtColor(mask, cv2.COLOR_GRAY2BGR)])

@@ -372,15 +372,14 @@ _BLAS_WARM = False
 
 def _warm_blas(threads: int = 2) -> None:
     """Put OpenBLAS in its fast state for ``threads`` concurrent callers, once per process: one
-    512 x 512 float32 matmul in each of ``threads`` threads at the same time (about 10 ms).
+    512 x 512 float32 matmul in each of ``threads`` threads at the same time.
 
-    Measured with numpy's bundled OpenBLAS (0.3.31, Haswell kernels, one thread, on a 2-core
-    EPYC): a readout-sized matmul (1,131 x 169 by 169 x 200) takes 6.5-7.5 ms until a matmul
-    with a large enough second operand has run, and 1.7-2.0 ms after, with bit-identical
-    results; the readout's own matmuls never make the switch. The state belongs to the buffer
-    OpenBLAS lends a call, and two calls running at once get two buffers: one matmul warms only
-    one, and the engine's second thread (``overlap``) multiplied at 3-7 ms while the calling
-    thread did. Warming as many buffers as the engine has threads cures both.
+    With numpy's bundled OpenBLAS (one thread), a readout-sized matmul (1,131 x 169 by 169 x
+    200) is several times slower until a matmul with a large enough second operand has run, with
+    bit-identical results either way; the readout's own matmuls never make the switch. The state
+    belongs to the buffer OpenBLAS lends a call, and two calls running at once get two buffers:
+    one matmul warms only one, and the engine's second thread (``overlap``) stayed slow while
+    the calling thread was fast. Warming as many buffers as the engine has threads cures both.
     """
     global _BLAS_WARM
     if _BLAS_WARM:

@@ -14,16 +14,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Optional
+from typing import Optional
 
 import cv2
 import numpy as np
 
+from bgsub._util import fast_median, is_affine  # noqa: F401  (re-exported)
 from bgsub.errors import InputError
-from bgsub.settings import check_settings, setting
 
 __all__ = [
-    "CameraMotionConfig",
     "fast_median",
     "GlobalMotion",
     "AUTO",
@@ -136,12 +135,6 @@ def is_identity(matrix: np.ndarray, *, atol: float = 1e-8, rtol: float = 1e-5) -
     return bool((d <= atol + rtol * _EYE).all())
 
 
-def is_affine(matrix: np.ndarray) -> bool:
-    """The ``(3, 3)`` homography's last row is ``(0, 0, c)``: an affine map (``warpAffine``)."""
-    m = np.asarray(matrix)
-    return abs(float(m[2, 0])) <= 1e-12 and abs(float(m[2, 1])) <= 1e-12 and float(m[2, 2]) != 0.0
-
-
 def corner_distances(a: np.ndarray, b: np.ndarray, *, width: int, height: int) -> np.ndarray:
     """``(4,) float64``: distance in pixels between where the homographies ``a`` and ``b`` put
     each corner of a ``width`` x ``height`` frame."""
@@ -210,7 +203,7 @@ def fit_global_motion(
     *,
     weights: Optional[np.ndarray] = None,
     model: str = "homography",
-    threshold: float = 1.5,
+    threshold: float,
     min_weight: float = 0.0,
     min_points: int = 12,
     min_inlier_ratio: float = 0.2,
@@ -452,37 +445,3 @@ def _within(dx: np.ndarray, dy: np.ndarray, threshold: float) -> np.ndarray:
     if unsure.any():
         near[unsure] = np.hypot(dx[unsure], dy[unsure]) < threshold
     return near
-
-
-def fast_median(a: np.ndarray) -> Any:
-    """``np.median(a, axis=0)`` of a finite ``(K,)`` or ``(K, C)`` float array (K >= 1),
-    computed as numpy computes it (the same partition, the mean of the middle one or two values
-    in ``a``'s precision) without its per-call overhead, which on a frame's few hundred or few
-    thousand values is most of a median's cost: a scalar of ``a``'s dtype for ``(K,)``, a
-    ``(C,)`` array for ``(K, C)``."""
-    k = len(a)
-    half = k // 2
-    kth = [half - 1, half, -1] if k % 2 == 0 else [(k - 1) // 2, -1]
-    part = np.partition(a, kth, axis=0)
-    # The sum starts from 0.0, as numpy's mean does (so a median of -0.0 is 0.0).
-    if k % 2:
-        return (0.0 + part[half]) / 1.0
-    return (0.0 + part[half - 1] + part[half]) / 2.0
-
-
-@dataclass(frozen=True)
-class CameraMotionConfig:
-    """How the camera motion is fitted to a frame's correspondences (its RANSAC settings)."""
-
-    motion_model: str = setting(AUTO, MOTION_MODEL_HELP, choices=FIT_MODELS)
-    threshold: float = setting(1.5, "RANSAC inlier distance in working-size pixels", above=0)
-
-    def __post_init__(self) -> None:
-        check_settings(self)
-
-    def fit(self, src: np.ndarray, dst: np.ndarray, *, weights: Optional[np.ndarray] = None,
-            frame_size: Optional[tuple] = None) -> GlobalMotion:
-        """:func:`fit_global_motion` of ``(N, 2)`` correspondences ``src -> dst`` with this
-        model and threshold (``weights`` ``(N,)``; ``frame_size`` ``(W, H)``)."""
-        return fit_global_motion(src, dst, weights=weights, model=self.motion_model,
-                                 threshold=self.threshold, frame_size=frame_size)

@@ -10,7 +10,7 @@ inference.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Dict, Optional, Tuple
+from typing import Any, Dict, Optional, Protocol, Tuple, runtime_checkable
 
 import cv2
 import numpy as np
@@ -21,7 +21,8 @@ from bgsub.motion.global_motion import (GlobalMotion, apply_homography, fit_glob
                                         is_identity)
 from bgsub.motion.pyramid import warp_back
 
-__all__ = ["WEAK_TEXTURE", "LevelGrid", "LevelReading", "PatchGrids", "level_texture_map",
+__all__ = ["WEAK_TEXTURE", "PatchMotion", "LevelGrid", "LevelReading", "PatchGrids",
+           "level_texture_map",
            "patch_motion", "patches_at", "read_level", "reading_from", "texture_weights",
            "textured_pixels"]
 
@@ -33,14 +34,28 @@ WEAK_TEXTURE = 0.003
 _COMPACT = 1.0 / 3.0
 
 
+@runtime_checkable
+class PatchMotion(Protocol):
+    """A patch-motion estimator other than the gated RBM (a test's oracle, another learnt
+    model): it reads raw patch pairs itself, so the gated RBM's projections of the first
+    frame's patches are neither made nor reused for it. A :class:`~bgsub.model.rbm.GatedRBM`
+    is not one: :func:`patch_motion` reads it through :mod:`bgsub.model.readout`."""
+
+    patch_size: int
+
+    def patch_motion(self, x_raw: np.ndarray, y_raw: np.ndarray, *,
+                     max_disp: int) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(disp (N, 2) float32, confidence (N,) float32, flat (N,) bool)`` of the ``(N, p*p)
+        float32`` raw patch pairs ``x_raw`` / ``y_raw`` in [0, 1], within ``max_disp`` px."""
+
+
 def patch_motion(model: Any, x_raw: np.ndarray, y_raw: np.ndarray, *, max_disp: int,
                  x_features: Any = None) -> tuple:
     """One batched gated-RBM readout.
 
     Parameters
     ----------
-    model : bgsub.model.rbm.GatedRBM, or any object with ``patch_size`` and a method
-        ``patch_motion(x_raw, y_raw, *, max_disp) -> (disp, confidence, flat)`` of this contract
+    model : bgsub.model.rbm.GatedRBM or a :class:`PatchMotion`
     x_raw, y_raw : (N, p*p) float32 raw patches in [0, 1]
     max_disp : int
     x_features : bgsub.model.readout.PatchFeatures, optional
@@ -54,8 +69,7 @@ def patch_motion(model: Any, x_raw: np.ndarray, y_raw: np.ndarray, *, max_disp: 
     """
     if len(x_raw) == 0:
         return np.zeros((0, 2), np.float32), np.zeros(0, np.float32), np.zeros(0, bool)
-    if hasattr(model, "patch_motion"):
-        # Any other patch-motion estimator with the same contract (used by tests as an oracle).
+    if isinstance(model, PatchMotion):
         return model.patch_motion(x_raw, y_raw, max_disp=max_disp)
     from bgsub.model import readout
 
@@ -242,7 +256,7 @@ class PatchGrids:
         return LevelGrid(centres, grid_shape, tex, pick, x, stride, self._features(x))
 
     def _features(self, x: np.ndarray) -> Any:
-        if hasattr(self.model, "patch_motion") or len(x) == 0:
+        if isinstance(self.model, PatchMotion) or len(x) == 0:
             return None
         from bgsub.model.readout import patch_features
 

@@ -19,7 +19,7 @@ import cv2
 import numpy as np
 
 from bgsub.model.tiling import to_gray
-from bgsub.motion.global_motion import is_affine
+from bgsub._util import is_affine
 from bgsub.motion.refine import as_uint8
 
 __all__ = ["FramePyramid", "MotionRangeWarning", "PyramidReach", "auto_levels", "model_range",

@@ -26,7 +26,7 @@ _CRITERIA = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 10, 0.01)
 
 
 def refine_vectors(prev: np.ndarray, cur: np.ndarray, points: np.ndarray, disp: np.ndarray, *,
-                   window: int = 13, within: float = 1.5) -> np.ndarray:
+                   window: int, within: float) -> np.ndarray:
     """Each displacement moved to the nearest minimum of the patch's squared difference.
 
     Parameters

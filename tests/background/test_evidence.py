@@ -4,7 +4,7 @@ import cv2
 import numpy as np
 import pytest
 
-from conftest import random_texture, shifted
+from helpers import random_texture, shifted
 
 from bgsub.background.evidence import camera_evidence_map, motion_evidence_map, residual_field
 from bgsub.background.fusion import flow_violation_map
@@ -40,7 +40,8 @@ def test_an_edge_moving_along_itself_gives_no_evidence():
     res = residual_field(pts, disp, w, cam, (H, W))
     evidence = motion_evidence_map(prev, cur, cam, residual=res)
     assert evidence.max() < 0.05
-    assert flow_violation_map(pts, disp, cam, weights=w, shape=(H, W)).min() > 0.9
+    assert flow_violation_map(pts, disp, cam, weights=w, shape=(H, W),
+                              noise_scale=0.0).min() > 0.9
 
 
 def test_an_edge_moving_across_itself_gives_evidence_where_it_disagrees():
@@ -158,6 +159,13 @@ def test_frames_of_another_type_or_shape_are_refused(prev, cur):
         motion_evidence_map(prev, cur, np.eye(3))
 
 
+def _violation(fusion, pts, disp, w, cam, prev, cur):
+    """The engine's violation map: the vectors' and the frames' evidence combined."""
+    image = fusion.image_evidence(pts, disp, w, cam, prev, cur)
+    vectors = fusion.vector_evidence(pts, disp, w, cam, cur.shape[:2])
+    return fusion.combined(vectors, None if image is None else image[0])
+
+
 def test_the_fusion_takes_the_larger_of_the_vectors_and_the_frames_evidence():
     from bgsub.background.fusion import Fusion, FusionConfig
 
@@ -170,15 +178,15 @@ def test_the_fusion_takes_the_larger_of_the_vectors_and_the_frames_evidence():
     right = pts[:, 0] > 96
     disp[right] = (3.0, 0.0)  # the vectors see a mover on the right, the frames do not agree
     w[(pts[:, 0] > 12) & (pts[:, 0] < 60)] = 0  # and nothing over the followed object
-    fusion = Fusion(FusionConfig(violation_noise=0.0))
-    both = fusion.violation(pts, disp, w, cam, prev, cur)
+    fusion = Fusion(FusionConfig(violation_threshold=1.5, violation_noise=0.0))
+    both = _violation(fusion, pts, disp, w, cam, prev, cur)
     vectors = flow_violation_map(pts, disp, cam, weights=w, shape=(H, W), threshold=1.5)
     frames = motion_evidence_map(prev, cur, cam,
                                  residual=residual_field(pts, disp, w, cam, (H, W)))
     np.testing.assert_allclose(both, np.maximum(vectors, frames), atol=1e-6)
     assert both[36:56, 26:46].mean() > 0.7 and both[:, 110:].mean() > 0.9
-    off = Fusion(FusionConfig(violation_noise=0.0, image_cue=0.0))
-    np.testing.assert_allclose(off.violation(pts, disp, w, cam, prev, cur), vectors, atol=1e-6)
+    off = Fusion(FusionConfig(violation_threshold=1.5, violation_noise=0.0, image_cue=0.0))
+    np.testing.assert_allclose(_violation(off, pts, disp, w, cam, prev, cur), vectors, atol=1e-6)
 
 
 @pytest.mark.parametrize("confirm, mover_disputes", [(0.5, True), (0.5, False), (0.0, False)])
@@ -191,8 +199,8 @@ def test_only_undisputed_foreground_moving_with_the_camera_is_confirmed(confirm,
     pts, disp, w = _grid_vectors((-3.0, 0.0))
     if mover_disputes:
         disp[pts[:, 0] < 64] = (3.0, 0.0)  # the vectors of the left half disagree
-    fusion = Fusion(FusionConfig(violation_noise=0.0, confirm=confirm))
-    violation = fusion.violation(pts, disp, w, cam, prev, cur)
+    fusion = Fusion(FusionConfig(violation_threshold=1.5, violation_noise=0.0, confirm=confirm))
+    violation = _violation(fusion, pts, disp, w, cam, prev, cur)
     along = fusion.image_evidence(pts, disp, w, cam, prev, cur)[1]
     mask = np.zeros((H, W), np.uint8)
     mask[20:76, 20:108] = 255  # foreground across both halves

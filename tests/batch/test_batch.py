@@ -12,7 +12,7 @@ from bgsub.batch import inputs, record, runner, threads
 from bgsub.batch.job import DONE, INTERRUPTED, NOT_STARTED, RunJob, run_input
 from bgsub.batch.plan import OutputLayout
 from bgsub.errors import InputError
-from conftest import write_box_clip
+from helpers import write_box_clip
 
 W, H, N = 64, 48, 12
 

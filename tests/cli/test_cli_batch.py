@@ -14,7 +14,7 @@ import pytest
 from bgsub.cli import main
 from bgsub.engines import Engine, Param, register_engine
 from bgsub.io.sources import open_source
-from conftest import write_box_clip
+from helpers import write_box_clip
 
 W, H, N = 64, 48, 12
 

@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 
 from bgsub.io.sources import open_source
-from conftest import write_box_clip
+from helpers import write_box_clip
 
 W, H, N = 64, 48, 12
 SCRIPT = Path(__file__).with_name("slow_engine.py")

@@ -17,7 +17,7 @@ import pytest
 from bgsub.cli import main
 from bgsub.io.flowio import read_flo
 from bgsub.model.rbm import FORMAT_VERSION, load_model
-from conftest import one_error_line, write_bins, write_input_sequence
+from helpers import one_error_line, write_bins, write_input_sequence
 
 W, H, FRAMES = 64, 48, 5
 LONG_NAME = "x" * 300  # longer than any file system's 255-byte names

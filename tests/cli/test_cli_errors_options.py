@@ -16,7 +16,7 @@ import cv2
 import numpy as np
 import pytest
 
-from conftest import one_error_line, write_box_clip
+from helpers import one_error_line, write_box_clip
 
 W, H, N = 64, 48, 12
 

@@ -16,7 +16,7 @@ from bgsub.engines import get_engine_spec
 from bgsub.evaluation.cdnet import evaluate_sequence
 from bgsub.samples import SceneSpec, generate_scene
 from bgsub.io.sinks import open_mask_sink
-from conftest import write_bins, write_gt_sequence
+from helpers import write_bins, write_gt_sequence
 
 GT = np.array([[255, 255, 0, 0, 170]] * 4, np.uint8)  # 8 positives, 8 negatives, 4 ignored
 PRED = np.array([[255, 0, 0, 0, 255]] * 4, np.uint8)  # TP 4, FN 4, TN 8

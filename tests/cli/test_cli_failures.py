@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from bgsub.cli import main
-from conftest import http_server, serve_folder, write_gt_sequence
+from helpers import http_server, serve_folder, write_gt_sequence
 
 
 def _index_at_end_mp4(path):

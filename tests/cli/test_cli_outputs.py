@@ -14,7 +14,7 @@ from bgsub import create_engine
 from bgsub.cli import main
 from bgsub.io.pipeline import OutputRequest, process
 from bgsub.io.sources import open_source
-from conftest import write_box_clip, write_pan_clip
+from helpers import write_box_clip, write_pan_clip
 
 W, H, N = 64, 48, 10
 _KINDS = ("--objects", "--motion", "--stats")

@@ -15,7 +15,7 @@ from bgsub.cli import main
 from bgsub.engines import Engine, Param, register_engine
 from bgsub.objects import find_regions
 from bgsub.samples import SceneSpec, render_frames
-from conftest import read_frames
+from helpers import read_frames
 
 N = 40
 

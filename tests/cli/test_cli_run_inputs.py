@@ -146,7 +146,7 @@ def test_motion_in_is_for_one_input(clip, tmp_path, bgsub_error):
 
 
 def test_model_is_the_model_parameter(clip, tmp_path):
-    from conftest import model_path
+    from helpers import model_path
 
     model = model_path()
     assert _run("run", clip, "-o", tmp_path / "a.mkv", "--model", model, "--max-frames",

@@ -67,7 +67,7 @@ def test_a_key_no_method_has_is_refused():
 
 
 def test_run_takes_its_own_method_s_prefix(tmp_path, capsys):
-    from conftest import write_box_clip
+    from helpers import write_box_clip
 
     clip = write_box_clip(tmp_path / "c.mkv", n=3)
     assert main(["run", str(clip), "-o", str(tmp_path / "m"), "-m", "mog2",

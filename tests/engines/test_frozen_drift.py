@@ -6,9 +6,9 @@ import numpy as np
 
 from bgsub.background.compensated import CompensatedBackground
 from bgsub.engines import create_engine
-from bgsub.engines.parts import FrozenModelRegistration
+from bgsub.camera import FrozenModelRegistration
 from bgsub.motion.global_motion import corner_error
-from conftest import model_path as _model_path
+from helpers import model_path as _model_path
 
 
 def _world(seed=0, h=300, w=460):

@@ -1,4 +1,4 @@
-"""bgsub.engines.parts.KnownMotion: a camera motion given (``known_motion``, ``--motion-in``)
+"""bgsub.camera.KnownMotion: a camera motion given (``known_motion``, ``--motion-in``)
 replaces the fit; entries all NaN, and frames past its end, are fitted as usual.
 
 The scene: a textured world panning exactly 5 px a frame to the right, with a large textured
@@ -7,10 +7,10 @@ object (half the frame wide) moving 1 px a frame, enough vectors to pull a RANSA
 import cv2
 import numpy as np
 import pytest
-from conftest import model_path
+from helpers import model_path
 
 from bgsub.engines import create_engine
-from bgsub.engines.parts import KnownMotion
+from bgsub.camera import KnownMotion
 from bgsub.errors import InputError
 
 H, W, PAN, N = 120, 160, 5, 14

@@ -13,9 +13,9 @@ from bgsub.engines.frontend import MotionResult
 from bgsub.engines.frontends.grbm import GrbmFrontEnd, Reading, RetryWait
 from bgsub.engines.frontends.lucas_kanade import LucasKanadeFrontEnd
 from bgsub.engines.moving import MovingCameraEngine, work_size
-from bgsub.engines.parts import SMALL_REGION, FrozenModelRegistration, spans_frame
+from bgsub.camera import SMALL_REGION, FrozenModelRegistration, spans_frame
 from bgsub.samples import SceneSpec, render_frames
-from conftest import OracleMatcher, model_path as _model_path, random_texture as _texture, shifted as _shift
+from helpers import OracleMatcher, model_path as _model_path, random_texture as _texture, shifted as _shift
 
 
 def _world(seed=0, h=300, w=460):
@@ -368,6 +368,9 @@ def test_mask_at_input_size_when_working_smaller():
         mask = eng.apply(frame)
         assert mask.shape == (180, 240)
         assert set(np.unique(mask)) <= {0, 255}
+    found = (mask > 0) & (gt > 0)  # the fourth frame's square, found at the input's size
+    assert np.count_nonzero(found) > 0.9 * np.count_nonzero(gt)
+    assert np.count_nonzero(found) > 0.9 * np.count_nonzero(mask)
     assert eng.debug_image().shape == (180, 240, 3)
 
 
@@ -495,7 +498,7 @@ def test_an_engine_built_on_a_front_end_has_the_registered_defaults(frontend_typ
     direct, registered = MovingCameraEngine(frontend_type()), create_engine(name)
     for engine in (direct, registered):
         assert isinstance(engine, MovingCameraEngine)
-    assert direct.config == registered.config and direct.camera == registered.camera
+    assert direct.config == registered.config and direct.camera.config == registered.camera.config
     assert direct.bg.config == registered.bg.config
     assert direct.fusion.config == registered.fusion.config
     assert direct.frontend.config == registered.frontend.config

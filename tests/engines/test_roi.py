@@ -8,7 +8,7 @@ is the top 56 rows."""
 import cv2
 import numpy as np
 import pytest
-from conftest import model_path
+from helpers import model_path
 
 from bgsub.engines import available_engines, create_engine
 from bgsub.engines.roi import RegionOfInterest

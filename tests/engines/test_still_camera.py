@@ -1,5 +1,5 @@
-"""The still-camera switch: bgsub.engines.parts.motion_snr and the engines' choice between the
-compensated and the sample background model (bgsub.background.sample)."""
+"""The still-camera switch: bgsub.background.still_switch.motion_snr and the engines' choice
+between the compensated and the sample background model (bgsub.background.sample)."""
 
 import cv2
 import numpy as np
@@ -8,9 +8,9 @@ import pytest
 from bgsub.engines import create_engine
 from bgsub.motion.global_motion import GlobalMotion
 from bgsub.engines.frontend import MotionResult
-from bgsub.engines.parts import motion_snr
+from bgsub.background.still_switch import motion_snr
 from bgsub.samples import SceneSpec, render_frames
-from conftest import model_path as _model_path
+from helpers import model_path as _model_path
 
 
 # ------------------------------------------------------------------ motion_snr
@@ -109,7 +109,7 @@ def test_a_multimodal_background_needs_the_sample_model(method):
     # of 60 and 180 do not (F: grbm 0.36, compensated 0.65; without: 0.00 both).
     with_samples, eng = _f_on_flicker(method, 0.15)
     without, plain = _f_on_flicker(method, 0.0)
-    assert eng.camera_still and not plain.camera_still and plain.still_switch is None
+    assert eng.camera_still and not plain.camera_still and not plain.still_switch.camera_still
     assert with_samples > 0.25 and without < 0.05
 
 

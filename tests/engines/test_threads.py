@@ -9,7 +9,7 @@ import sys
 import textwrap
 
 import pytest
-from conftest import write_pan_clip
+from helpers import write_pan_clip
 
 from bgsub.engines.threads import reuse_freed_memory
 

@@ -18,7 +18,7 @@ from bgsub.engines import Engine, Param, register_engine
 from bgsub.evaluation.compare import TileLayout, compare_methods
 from bgsub.errors import InputError, OutputError
 from bgsub.evaluation.cdnet import METRIC_NAMES, Metrics, evaluate_sequence
-from conftest import SCENE_H, SCENE_W, read_frames, write_input_sequence
+from helpers import SCENE_H, SCENE_W, read_frames, write_input_sequence
 
 METHODS = ["framediff", "mog2"]
 

@@ -17,7 +17,7 @@ from bgsub.evaluation.compare_report import ComparisonReport, ComparisonRow
 from bgsub.evaluation.html_report import METRICS_SENTENCE, render_html
 from bgsub.evaluation.metrics import Metrics
 from bgsub.evaluation.report_frames import THUMB_WIDTH
-from conftest import write_input_sequence
+from helpers import write_input_sequence
 from test_html_report import Page
 
 CHROMIUM = Path("/usr/bin/chromium")

@@ -13,7 +13,7 @@ from bgsub.io import flowio, sources
 from bgsub.cli import main
 from bgsub.errors import InputError
 from bgsub.evaluation.cdnet import evaluate_sequence, find_prediction, open_ground_truth
-from conftest import write_bins, write_gt_sequence, write_input_sequence, write_mask_video
+from helpers import write_bins, write_gt_sequence, write_input_sequence, write_mask_video
 
 # One labelled frame (4x5, two object columns) and its perfect 0/255 mask.
 GT3 = np.array([[255, 255, 0, 0, 0]] * 4, np.uint8)

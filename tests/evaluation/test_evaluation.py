@@ -18,7 +18,7 @@ from bgsub.evaluation.cdnet import (
     find_sequences, is_uniform_scale, metrics, open_ground_truth,
 )
 from bgsub.io.sources import output_size
-from conftest import write_bins, write_gt_sequence, write_mask_video
+from helpers import write_bins, write_gt_sequence, write_mask_video
 
 
 def u8(rows: Sequence[Sequence[int]]) -> np.ndarray:

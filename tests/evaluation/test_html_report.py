@@ -23,7 +23,7 @@ from bgsub.evaluation.report_frames import FRAMES_SHOWN, ReportFrames, spread
 from bgsub.evaluation.side_by_side import NO_TRUTH_BGR, TileLayout, truth_picture
 from bgsub.io.h264 import h264_available
 from bgsub.io.loop import FrameLoop
-from conftest import SCENE_H, SCENE_W, write_box_clip, write_gt_sequence, write_input_sequence
+from helpers import SCENE_H, SCENE_W, write_box_clip, write_gt_sequence, write_input_sequence
 
 METHODS = ["framediff", "mog2"]
 

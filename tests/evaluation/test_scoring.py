@@ -15,7 +15,7 @@ from bgsub.evaluation.compare import compare_methods
 from bgsub.evaluation.scoring import GroundTruthScorer, SequenceScorer
 from bgsub.io.loop import Consumer, FrameLoop
 from bgsub.io.sources import open_source
-from conftest import write_bins, write_gt_sequence, write_input_sequence
+from helpers import write_bins, write_gt_sequence, write_input_sequence
 
 
 class _Bright(Engine):

@@ -173,10 +173,18 @@ def test_max_magnitude_must_be_above_zero(bad):
         flow_picture(_field(), image=image, arrows=True, max_magnitude=bad)
 
 
-def test_max_magnitude_none_is_automatic_and_small_values_work():
+def test_max_magnitude_none_is_the_largest_magnitude():
     flow = _field()
-    assert flow_to_color(flow, max_magnitude=None).shape == (5, 7, 3)
-    assert flow_to_color(flow, max_magnitude=1e-3).shape == (5, 7, 3)
+    largest = float(np.hypot(*np.moveaxis(flow.astype(np.float64), 2, 0)).max())
+    automatic = flow_to_color(flow, max_magnitude=None)
+    assert np.array_equal(automatic, flow_to_color(flow, max_magnitude=largest))
+    assert not np.array_equal(automatic, flow_to_color(flow, max_magnitude=2 * largest))
+
+
+def test_a_small_max_magnitude_draws_every_vector_beyond_it_darker():
+    flow = _field()
+    tiny = flow_to_color(flow, max_magnitude=1e-3)
+    assert tiny.shape == (5, 7, 3) and tiny.mean() < 0.6 * flow_to_color(flow).mean()
 
 
 # --------------------------------------------------------------------------------------------

@@ -18,7 +18,7 @@ from bgsub.cli import main
 from bgsub.errors import OutputError, ProcessingError
 from bgsub.io.h264 import h264_available, picture_codec
 from bgsub.io.sinks import VideoSink
-from conftest import read_frames, write_box_clip
+from helpers import read_frames, write_box_clip
 
 needs_h264 = pytest.mark.skipif(not h264_available(),
                                 reason="PyAV with libx264 not installed (the h264 extra)")

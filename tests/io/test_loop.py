@@ -14,7 +14,7 @@ from bgsub.io.loop import Consumer, FrameLoop, FrameResult, hold_interrupts
 from bgsub.io.sinks import VideoSink, VisSink, open_mask_sink
 from bgsub.io.writers import DebugImageWriter, MaskWriter, MotionWriter, VisWriter
 
-from conftest import read_frames
+from helpers import read_frames
 
 W, H = 48, 32
 

@@ -9,7 +9,7 @@ from bgsub.errors import OutputError
 from bgsub.io.mask_sinks import MaskVideoSink
 from bgsub.io.sinks import MotionSink, VideoSink, open_mask_sink
 
-from conftest import read_frames
+from helpers import read_frames
 from test_sinks import H, W, _masks
 
 _BUSY = "another run is writing it now; wait for it to end or choose another name"

@@ -12,7 +12,7 @@ import pytest
 from bgsub.io import outputs, sinks
 from bgsub.errors import OutputError, ProcessingError
 from bgsub.io.sinks import VideoSink, VisSink, open_mask_sink, process, render_overlay
-from conftest import read_frames
+from helpers import read_frames
 
 W, H = 48, 32
 

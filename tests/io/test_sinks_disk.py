@@ -21,7 +21,7 @@ from bgsub.io import mask_sinks, motion_sink, videofile
 from bgsub.errors import OutputError, ProcessingError
 from bgsub.io.sinks import MotionSink, VideoSink, VisSink, open_mask_sink, process
 
-from conftest import read_frames
+from helpers import read_frames
 from test_sinks import ClosedWriter, H, W, _masks
 
 _REAL_WRITER = cv2.VideoWriter

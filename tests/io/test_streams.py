@@ -6,7 +6,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-from conftest import serve_folder, write_box_clip, write_mp4_clip
+from helpers import serve_folder, write_box_clip, write_mp4_clip
 
 from bgsub.cli import main
 from bgsub.errors import InputError

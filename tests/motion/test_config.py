@@ -6,7 +6,7 @@ import pytest
 
 from bgsub.errors import InputError
 from bgsub.motion import FlowConfig
-from bgsub.motion.global_motion import CameraMotionConfig
+from bgsub.camera import CameraConfig
 from bgsub.settings import config_params
 
 
@@ -46,7 +46,7 @@ def test_config_params_picks_names_in_order_and_replaces_defaults():
     assert params["search"].high == 8
 
 
-def test_camera_motion_config_is_checked():
-    assert CameraMotionConfig().motion_model == "auto"
-    with pytest.raises(InputError, match="CameraMotionConfig: parameter 'threshold'"):
-        CameraMotionConfig(threshold=0.0)
+def test_camera_config_is_checked():
+    assert CameraConfig().motion_model == "auto"
+    with pytest.raises(InputError, match="CameraConfig: parameter 'ransac_threshold'"):
+        CameraConfig(ransac_threshold=0.0)

@@ -13,7 +13,7 @@ import cv2
 import numpy as np
 import pytest
 
-from conftest import OracleMatcher, random_texture, shifted
+from helpers import OracleMatcher, random_texture, shifted
 from bgsub.errors import InputError, ModelError
 from bgsub.motion import FlowConfig
 from bgsub.motion.flowfield import FlowEstimate, dense_from_patches, estimate_flow
@@ -471,10 +471,16 @@ def test_a_max_motion_within_reach_or_fixed_levels_do_not_warn(options):
         _flow(base, base, model=OracleMatcher(), **options)
 
 
-def test_a_model_name_is_loaded():
-    base = random_texture(60, 80, seed=3)[:60, :80]
-    flow = _flow(base, base, model="dots-translation", levels=1)
-    assert flow.disp.shape[1] == 2
+def test_a_model_name_reads_with_that_shipped_model():
+    from bgsub.model.rbm import load_model
+
+    base = random_texture(60, 80, seed=3)
+    first, second = base[:60, :80], shifted(base, 2, 1, 60, 80)
+    by_name = _flow(first, second, model="dots-translation", levels=1)
+    loaded = _flow(first, second, model=load_model("dots-translation"), levels=1)
+    other = _flow(first, second, model="natural", levels=1)
+    assert np.array_equal(by_name.disp, loaded.disp)
+    assert not np.array_equal(by_name.disp, other.disp)
 
 
 def test_a_pyramids_8_bit_level_0_is_the_gray_frame_it_was_built_from():

@@ -24,7 +24,7 @@ def test_recovers_motion_with_half_outliers(model):
     dst = apply_homography(h, src) + rng.normal(0, 0.2, (400, 2))
     bad = rng.random(400) < 0.5
     dst[bad] = rng.uniform([0, 0], [320, 240], (bad.sum(), 2))
-    gm = fit_global_motion(src, dst, model=model, frame_size=(320, 240))
+    gm = fit_global_motion(src, dst, model=model, frame_size=(320, 240), threshold=1.5)
     assert gm.ok, gm.reason
     assert corner_error(gm.matrix, h, width=320, height=240) < 0.5
     # Inliers are (mostly) the true correspondences.
@@ -46,7 +46,7 @@ def test_auto_chooses_the_model_that_moved_the_points(model):
     src = rng.uniform([0, 0], [320, 240], (300, 2))
     dst = apply_homography(truth, src) + rng.normal(0, 0.1, (300, 2))
     dst[:60] += rng.uniform(-10, 10, (60, 2))
-    gm = fit_global_motion(src, dst, model="auto", frame_size=(320, 240))
+    gm = fit_global_motion(src, dst, model="auto", frame_size=(320, 240), threshold=1.5)
     assert gm.ok, gm.reason
     name, matrix = simplest_model(src, dst, gm.matrix, gm.inliers)
     assert name == model
@@ -64,8 +64,9 @@ def test_auto_does_not_invent_zoom_from_vectors_in_two_strips():
     src = np.column_stack([xs, rng.uniform(0, 240, n)])
     dst = src + [0.25, 0.0] + rng.normal(0, 0.25, (n, 2))
     truth = np.array([[1, 0, 0.25], [0, 1, 0], [0, 0, 1.0]])
-    homography = fit_global_motion(src, dst, model="homography", frame_size=(320, 240))
-    auto = fit_global_motion(src, dst, model="auto", frame_size=(320, 240))
+    homography = fit_global_motion(src, dst, model="homography", frame_size=(320, 240),
+                                   threshold=1.5)
+    auto = fit_global_motion(src, dst, model="auto", frame_size=(320, 240), threshold=1.5)
     np.testing.assert_array_equal(auto.matrix[:2, :2], np.eye(2))
     error = corner_error(auto.matrix, truth, width=320, height=240)
     assert error < 0.05
@@ -80,7 +81,7 @@ def test_weights_drop_unreliable_points():
     bad = np.arange(200) < 140
     dst[bad] = src[bad] + rng.uniform(-8, 8, (140, 2))
     w = np.where(bad, 0.0, 1.0)
-    gm = fit_global_motion(src, dst, weights=w, model="affine")
+    gm = fit_global_motion(src, dst, weights=w, model="affine", threshold=1.5)
     assert gm.ok
     np.testing.assert_allclose(gm.matrix[:2, 2], [3.0, -1.0], atol=0.05)
     assert not gm.inliers[bad].any()
@@ -88,7 +89,7 @@ def test_weights_drop_unreliable_points():
 
 def test_too_few_points_is_refused_not_garbage():
     src = np.array([[0, 0], [10, 0], [0, 10]], float)
-    gm = fit_global_motion(src, src + 1.0)
+    gm = fit_global_motion(src, src + 1.0, threshold=1.5)
     assert not gm.ok and "too few" in gm.reason
     np.testing.assert_array_equal(gm.matrix, np.eye(3))
 
@@ -96,7 +97,7 @@ def test_too_few_points_is_refused_not_garbage():
 def test_implausible_motion_is_refused():
     rng = np.random.default_rng(3)
     src = rng.uniform([0, 0], [320, 240], (100, 2))
-    gm = fit_global_motion(src, src * 3.0, model="affine", frame_size=(320, 240))
+    gm = fit_global_motion(src, src * 3.0, model="affine", frame_size=(320, 240), threshold=1.5)
     assert not gm.ok and "degenerate" in gm.reason
 
 
@@ -105,7 +106,7 @@ def test_translation_model():
     src = rng.uniform([0, 0], [320, 240], (100, 2))
     dst = src + [-7.5, 2.25]
     dst[:40] += rng.uniform(-20, 20, (40, 2))
-    gm = fit_global_motion(src, dst, model="translation")
+    gm = fit_global_motion(src, dst, model="translation", threshold=1.5)
     assert gm.ok
     np.testing.assert_allclose(gm.matrix[:2, 2], [-7.5, 2.25], atol=1e-6)
 
@@ -137,12 +138,13 @@ def test_fit_refuses_points_that_are_not_n_by_2(bad):
     else:
         src, dst = src.T, dst.T
     with pytest.raises(InputError, match=r"src must be \(N, 2\) points"):
-        fit_global_motion(src, dst, model="translation")
+        fit_global_motion(src, dst, model="translation", threshold=1.5)
 
 
 def test_fit_accepts_opencv_point_layout():
     src, dst = _pan_points()
-    gm = fit_global_motion(src.reshape(-1, 1, 2), dst.reshape(-1, 1, 2), model="translation")
+    gm = fit_global_motion(src.reshape(-1, 1, 2), dst.reshape(-1, 1, 2), model="translation",
+                           threshold=1.5)
     assert gm.ok and gm.inliers.shape == (60,)
     np.testing.assert_allclose(gm.matrix[:2, 2], [3.0, -2.0], atol=1e-4)
 
@@ -152,7 +154,7 @@ def test_fit_refuses_weights_of_another_length():
 
     src, dst = _pan_points()
     with pytest.raises(InputError, match=r"weights must be \(60,\).*\(59,\)"):
-        fit_global_motion(src, dst, weights=np.ones(59))
+        fit_global_motion(src, dst, weights=np.ones(59), threshold=1.5)
 
 
 @pytest.mark.parametrize("threshold", [0.0, -1.0, float("nan")])

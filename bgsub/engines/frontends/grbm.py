@@ -20,20 +20,11 @@ from bgsub.motion.config import FlowConfig
 from bgsub.motion.flowfield import (FlowEstimate, FramePyramid, dense_from_patches,
                                     estimate_flow, prepare_first_frame)
 from bgsub.motion.global_motion import GlobalMotion
+from bgsub.motion.patches import PatchMotion
 from bgsub.motion.refine import MIN_REFINE_WINDOW, refine_vectors
 from bgsub.settings import check_settings, config_params, setting
 
-__all__ = ["GrbmConfig", "GrbmFrontEnd", "GRBM_TUNED", "FLOW_PARAMS", "Reading", "RetryWait"]
-
-# The gated RBM's flow-violation evidence is dense but noisier than tracked corners: weakly
-# textured object patches read the camera's motion and would damp true objects, so its engine
-# leans on violation evidence to boost rather than to damp. How noisy its vectors are depends
-# on the footage (sharp BMS-26 vs blurred CDnet traffic), so a violation is a disagreement of
-# 0.75 px or 4 robust standard deviations of the frame's disagreements, whichever is larger.
-# With the coarsest level read to convergence its vectors support a homography at a tighter
-# 1 px RANSAC threshold. Tuned on the real set (docs/BENCHMARKS.md).
-GRBM_TUNED = dict(ransac_threshold=1.0, flow_boost=1.5, flow_damp=0.2, violation_threshold=0.75,
-                  violation_noise=4.0)
+__all__ = ["GrbmConfig", "GrbmFrontEnd", "FLOW_PARAMS", "Reading", "RetryWait"]
 
 #: The :class:`FlowConfig` settings that are parameters of the ``grbm`` engine.
 FLOW_PARAMS = ("stride", "levels", "max_motion", "min_texture", "max_patches", "iterations",
@@ -143,7 +134,6 @@ class GrbmFrontEnd(MotionFrontEnd):
     description = ("moving camera: gated-RBM patch motion (coarse to fine) + RANSAC camera "
                    "motion + compensated background model (the paper's method)")
     config_type = GrbmConfig
-    stage_defaults = GRBM_TUNED
     common_params = ("model", "stride", "max_motion", *MotionFrontEnd.common_params)
 
     def __init__(self, config: Optional[GrbmConfig] = None, *,
@@ -169,7 +159,7 @@ class GrbmFrontEnd(MotionFrontEnd):
         return FramePyramid(gray)
 
     def prepare(self, data: FramePyramid) -> None:
-        if not hasattr(self.model, "patch_motion"):
+        if not isinstance(self.model, PatchMotion):
             # With prior_levels, the next pair is normally read from the previous motion on
             # the reduced pyramid: prepare that; a read without a prior (or a retry) cuts the
             # other levels when it needs them.
@@ -333,17 +323,17 @@ def _result(reading: Reading) -> MotionResult:
 
 
 def _load(model: Any, contrast_floor: float) -> Any:
-    """The patch-motion model: a name or path loaded, a GatedRBM or any object with the
-    ``patch_motion`` contract (:func:`bgsub.motion.flowfield.patch_motion`) as it is. A
-    ``contrast_floor`` other than a contrast-normalised model's own gives a copy with its own
-    readout caches (the model object may be shared: a caller's)."""
+    """The patch-motion model: a name or path loaded, a GatedRBM or a
+    :class:`~bgsub.motion.patches.PatchMotion` as it is. A ``contrast_floor`` other than a
+    contrast-normalised model's own gives a copy with its own readout caches (the model object
+    may be shared: a caller's)."""
     from bgsub.model.rbm import load_model
 
-    model = model if hasattr(model, "patch_motion") else load_model(model)
+    model = model if isinstance(model, PatchMotion) else load_model(model)
     if (contrast_floor > 0 and getattr(model, "normalization", None) == "contrast"
             and contrast_floor != model.contrast_floor):
         model = dataclasses.replace(model, contrast_floor=float(contrast_floor), _cache={})
-    if not hasattr(model, "patch_motion"):
+    if not isinstance(model, PatchMotion):
         # Per-model constants of the readout, once here rather than in the first frame.
         from bgsub.model.readout import precompute
         from bgsub.motion.flowfield import model_range

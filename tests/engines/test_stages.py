@@ -1,5 +1,6 @@
-"""The moving-camera engine's named parts (bgsub.engines.parts), its second thread
-(bgsub.engines.threads) and its stage settings (bgsub.engines.config), each on its own."""
+"""The moving-camera engine's parts (the camera stage's rules, bgsub.camera; the foreground
+policies, bgsub.background), its second thread (bgsub.engines.threads) and its stage settings
+(bgsub.engines.config), each on its own."""
 
 import dataclasses
 import pickle
@@ -12,12 +13,15 @@ import pytest
 from bgsub.background.compensated import BackgroundConfig
 from bgsub.background.fusion import FusionConfig
 from bgsub.engines import get_engine_spec
-from bgsub.engines.config import STAGES, CameraConfig, EngineConfig, stage_configs
-from bgsub.engines.frontend import NO_MOTION, MotionResult
-from bgsub.engines.frontends.grbm import GRBM_TUNED
 from bgsub.background.compensated import CompensatedBackground
-from bgsub.engines.parts import (SATURATED, SMALL_REGION, BlobPersistence, MotionHoldBack,
-                                 SceneCut, SmallRegionRule, StillCameraSwitch, match_exposure)
+from bgsub.background.exposure import SATURATED, match_exposure
+from bgsub.background.persistence import BlobPersistence
+from bgsub.background.scene_cut import SceneCut
+from bgsub.background.still_switch import StillCameraSwitch
+from bgsub.camera import SMALL_REGION, CameraConfig, MotionHoldBack, SmallRegionRule
+from bgsub.engines.config import STAGES, EngineConfig, stage_configs
+from bgsub.engines.frontend import NO_MOTION, MotionResult
+from bgsub.engines.frontends.lucas_kanade import LucasKanadeFrontEnd
 from bgsub.engines.threads import SecondThread
 from bgsub.errors import InputError
 from bgsub.motion.global_motion import GlobalMotion
@@ -237,7 +241,8 @@ def test_stage_settings_are_frozen():
         FusionConfig().threshold = 2.0
 
 
-@pytest.mark.parametrize("name, overrides", [("grbm", GRBM_TUNED), ("compensated", {})])
+@pytest.mark.parametrize("name, overrides", [("grbm", {}),
+                                             ("compensated", LucasKanadeFrontEnd.stage_defaults)])
 def test_the_engines_parameters_are_the_stage_settings(name, overrides):
     params = get_engine_spec(name).params
     for stage in STAGES:

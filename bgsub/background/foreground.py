@@ -1,0 +1,140 @@
+"""The moving-camera engine's foreground stages, after the camera stage has decided the motion:
+
+* compare (:meth:`Foreground.compare`): the compensated model, warped into the frame, scores it
+  brought to the model's exposure, and the motion evidence is made (the vectors' in this
+  thread, the frames' own in the engine's second thread);
+* decide (:meth:`Foreground.is_cut`, :meth:`Foreground.decide`): a new shot, or the mask: the
+  compensated model's score (the still-camera model's while the camera is still) fused with the
+  motion evidence, less the blobs new since the last frame, grown over the last objects'
+  colours, with the holes it and the frame's edges enclose filled;
+* learn (:meth:`Foreground.learn`): the models' update, deferred to the next frame, where it
+  runs in the second thread beside the motion front end.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable, Optional
+
+import numpy as np
+
+from bgsub.background.compensated import CompensatedBackground
+from bgsub.background.fusion import Fusion
+from bgsub.background.object_colour import ObjectColours
+from bgsub.background.persistence import BlobPersistence
+from bgsub.background.scene_cut import SceneCut
+from bgsub.motion.result import MotionResult
+
+__all__ = ["Comparison", "Lesson", "Foreground"]
+
+
+@dataclass
+class Comparison:
+    """What the compare stage found in a frame."""
+
+    score: np.ndarray  # (h, w) float32: the background difference (above 1 = differs)
+    violation: Optional[np.ndarray]  # (h, w) float32 in [0, 1]: motion against the camera's
+    along: Optional[np.ndarray]  # (h, w) float32: the frames' evidence of the camera's motion
+    exposed: np.ndarray  # the frame at the compensated model's exposure, (h, w[, 3]) uint8
+    gain: float  # what the frame was divided by to get there
+
+
+@dataclass
+class Lesson:
+    """A frame's update of the models, deferred to the next frame."""
+
+    exposed: np.ndarray  # the frame at the compensated model's exposure (h, w[, 3]) uint8
+    gain: float
+    work: np.ndarray  # the frame as it came, for the still-camera model
+    mask: np.ndarray  # (h, w) uint8 0/255: the frame's mask, copied (apply may return it)
+    violation: Optional[np.ndarray]  # the motion evidence, for Fusion.learn_slowly
+    confirmed: Optional[np.ndarray]  # (h, w) bool: Fusion.confirmed
+    rate: float  # the caller's learning rate
+
+
+class Foreground:
+    """The compare, decide and learn stages (module docstring) over the compensated model
+    ``bg`` and the ``fusion``, with the policies ``exposure`` (``(frame, model) -> (exposed,
+    gain)``), ``scene_cut``, ``still_switch``, ``persistence`` and ``object_colours``;
+    ``alongside`` is the engine's second thread's
+    :meth:`~bgsub.engines.threads.SecondThread.alongside`."""
+
+    def __init__(self, bg: CompensatedBackground, fusion: Fusion, *, exposure: Callable,
+                 scene_cut: SceneCut, still_switch: Any, persistence: BlobPersistence,
+                 object_colours: ObjectColours, alongside: Callable) -> None:
+        self.bg, self.fusion, self.exposure = bg, fusion, exposure
+        self.scene_cut, self.still_switch = scene_cut, still_switch
+        self.persistence, self.object_colours = persistence, object_colours
+        self.alongside = alongside
+        self.lesson: Optional[Lesson] = None
+
+    def compare(self, work: np.ndarray, prev: np.ndarray, result: MotionResult,
+                matrix: np.ndarray, applied: np.ndarray, *, frozen: bool,
+                fixed: bool) -> Comparison:
+        """The :class:`Comparison` of ``work`` (the frame, (h, w[, 3]) uint8; ``prev`` the
+        previous one) with the model warped by ``applied`` (3, 3; a ``frozen`` model is warped
+        sharp and forgets what the previous frame saw only in part); the motion evidence of
+        ``result``'s vectors and of the frames, against the camera's ``matrix`` (3, 3), the
+        vectors' with the fixed violation threshold when ``fixed`` (a refused small region's
+        vectors are one consistent motion, not noise about the camera's)."""
+        image: list = []
+
+        def evidence() -> None:
+            image.append(self.fusion.image_evidence(result.points, result.disp, result.weights,
+                                                    matrix, prev, work))
+
+        # The frames' evidence is the longer job: the vectors' map is made in this thread.
+        with self.alongside(evidence):
+            self.bg.warp(applied, sharp=frozen)
+            if frozen:
+                self.bg.forget_partly_seen(applied)
+            exposed, gain = self.exposure(work, self.bg)
+            score = self.bg.score(exposed)
+            vectors = self.fusion.vector_evidence(
+                result.points, result.disp, result.evidence_weights, matrix, work.shape[:2],
+                noise_scale=0.0 if fixed else None)
+        against, along = image[0] if image[0] is not None else (None, None)
+        return Comparison(score=score, violation=self.fusion.combined(vectors, against),
+                          along=along, exposed=exposed, gain=gain)
+
+    def young(self) -> np.ndarray:
+        """``(h, w) bool``: the pixels without enough history to count in :meth:`is_cut`."""
+        return self.bg.age < self.bg.config.min_age
+
+    def is_cut(self, compared: Comparison, result: MotionResult, young: np.ndarray) -> bool:
+        """Whether the frame starts a new shot (:class:`SceneCut`), not counting the ``young``
+        pixels ((h, w) bool: :meth:`young`, and those outside a region of interest)."""
+        return self.scene_cut.is_cut(compared.score, young, result)
+
+    def decide(self, work: np.ndarray, gray: np.ndarray, result: MotionResult,
+               matrix: np.ndarray, compared: Comparison, rate: float) -> np.ndarray:
+        """The (h, w) uint8 0/255 mask of the frame ``work`` (``gray`` its gray image) seen
+        with motion ``result`` and camera motion ``matrix``; its :class:`Lesson`, at learning
+        rate ``rate``, is kept for :meth:`learn`."""
+        still = self.still_switch.judge(work, result, compensated=self.bg,
+                                        compensated_score=compared.score)
+        score = compared.score if still is None else still
+        mask = self.persistence.filter(self.fusion.mask(score, compared.violation), matrix)
+        mask = self.object_colours.grow(mask, work)
+        # learn_slowly's closing is left to the update, which the second thread runs.
+        mask = self.fusion.close_by_edges(mask, gray)
+        confirmed = self.fusion.confirmed(mask, compared.violation, compared.along)
+        self.lesson = Lesson(exposed=compared.exposed, gain=compared.gain, work=work,
+                             mask=mask.copy(), violation=compared.violation,
+                             confirmed=confirmed, rate=rate)
+        return mask
+
+    def learn(self) -> None:
+        """The last frame's deferred update of the models, if any."""
+        if self.lesson is not None:
+            u, self.lesson = self.lesson, None
+            slow = self.fusion.learn_slowly(u.mask, u.violation)
+            self.object_colours.learn(u.work, u.mask)
+            self.bg.update(u.exposed, slow, u.rate, exposure=u.gain, confirmed=u.confirmed)
+            self.still_switch.update(u.work, slow, u.rate)
+
+    def restart(self, frame: np.ndarray) -> None:
+        """Start over from ``frame`` (the first frame, a new shot): nothing left to learn."""
+        self.lesson = None
+        for part in (self.persistence, self.object_colours, self.bg, self.still_switch):
+            part.restart(frame)

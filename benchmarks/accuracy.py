@@ -60,13 +60,14 @@ REAL_FAMILIES = {"CDnet2014": "CDnet", "BMS26": "BMS-26", "UCSD": "UCSD", "DAVIS
 SAMPLE_SEEDS = (0, 1, 2)
 
 
-def sequences(which: str, half: str,
-              seeds: Tuple[int, ...] = SAMPLE_SEEDS) -> List[Tuple[str, str]]:
+def sequences(which: str, half: str, seeds: Tuple[int, ...] = SAMPLE_SEEDS,
+              root: Optional[Path] = None) -> List[Tuple[str, str]]:
     """``[(family, path or 'category:seed')]`` of a set's half (``A``, ``B`` or ``all``);
-    ``seeds``: the sample sets' scenes."""
+    ``seeds``: the sample sets' scenes; ``root``: the generated set's folder (default
+    ``DATA/generated``)."""
     groups: Dict[str, List[str]] = defaultdict(list)
     if which == "generated":
-        for seq in sorted((DATA / "generated").glob("*/*_[0-9]*")):
+        for seq in sorted((root or DATA / "generated").glob("*/*_[0-9]*")):
             groups[seq.parent.name].append(str(seq))
     elif which == "real":
         for seq in sorted((DATA / "real").iterdir()):
@@ -257,6 +258,9 @@ def main(argv: Optional[List[str]] = None) -> int:
     ap.add_argument("--set", choices=("generated", "real", "samples", "static-samples"),
                     default="generated")
     ap.add_argument("--half", choices=("A", "B", "all"), default="all")
+    ap.add_argument("--root", type=Path,
+                    help="--set generated: another folder of CATEGORY/CATEGORY_NN scenes, such "
+                         "as those ../shared/tools/scenes/gen_scenes2.py writes")
     ap.add_argument("-m", "--method", default="grbm")
     ap.add_argument("-p", "--param", action="append", default=[], metavar="KEY=VALUE")
     ap.add_argument("--oracle-camera", action="store_true")
@@ -275,7 +279,8 @@ def main(argv: Optional[List[str]] = None) -> int:
                          (args.oracle_camera and args.degrade[0] in ("step", "orbit"))):
         ap.error("--degrade needs --set generated or real (and step or orbit no --oracle-camera)")
     todo = [(args.method, params, fam, m, args.oracle_camera, args.degrade)
-            for fam, m in sequences(args.set, args.half, tuple(args.seeds)) if args.match in m]
+            for fam, m in sequences(args.set, args.half, tuple(args.seeds), args.root)
+            if args.match in m]
     with multiprocessing.get_context("fork").Pool(args.jobs) as pool:
         results = pool.map(run_sequence, todo, chunksize=1)
     summary = summarise(args.set, results)
@@ -287,7 +292,8 @@ def main(argv: Optional[List[str]] = None) -> int:
           f"{summary['cpu_ms_per_frame']:.1f} ms/frame CPU")
     print("   " + " ".join(f"{k}={v:.3f}" for k, v in summary["sequences"].items()))
     if args.json:
-        Path(args.json).write_text(json.dumps(dict(args=vars(args), **summary), indent=1))
+        Path(args.json).write_text(json.dumps(dict(args=vars(args), **summary), indent=1,
+                                                   default=str))
     return 0
 
 

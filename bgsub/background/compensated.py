@@ -372,6 +372,12 @@ class CompensatedBackground:
         inside = cv2.inRange(here, lo, hi) > 0  # every channel within its bounds
         return y0, x0, candidates[box] & inside
 
+    def forget(self, where: np.ndarray) -> None:
+        """Drop the history of the ``(H, W) bool`` pixels ``where`` (age 0): the next update
+        takes the frame there, and a warp carries no memory of them into their neighbours."""
+        if self.age is not None:
+            self.age[where] = 0.0
+
     def exposure_gain(self, frame: np.ndarray, *, step: int = 8) -> float:
         """``frame``'s brightness relative to the model (warped to it): the median of ``frame /
         mean`` over every ``step``-th pixel and channel with a history (age 1 or more) where

@@ -107,10 +107,12 @@ class Foreground:
         return self.scene_cut.is_cut(compared.score, young, result)
 
     def decide(self, work: np.ndarray, gray: np.ndarray, result: MotionResult,
-               matrix: np.ndarray, compared: Comparison, rate: float) -> np.ndarray:
+               matrix: np.ndarray, compared: Comparison, rate: float, *,
+               region: Any) -> np.ndarray:
         """The (h, w) uint8 0/255 mask of the frame ``work`` (``gray`` its gray image) seen
-        with motion ``result`` and camera motion ``matrix``; its :class:`Lesson`, at learning
-        rate ``rate``, is kept for :meth:`learn`."""
+        with motion ``result`` and camera motion ``matrix``, cleared outside ``region`` (its
+        ``clear_outside``: the frame less its frame-fixed overlays); its
+        :class:`Lesson`, at learning rate ``rate``, is kept for :meth:`learn`."""
         still = self.still_switch.judge(work, result, compensated=self.bg,
                                         compensated_score=compared.score)
         score = compared.score if still is None else still
@@ -118,6 +120,7 @@ class Foreground:
         mask = self.object_colours.grow(mask, work)
         # learn_slowly's closing is left to the update, which the second thread runs.
         mask = self.fusion.close_by_edges(mask, gray)
+        region.clear_outside(mask)
         confirmed = self.fusion.confirmed(mask, compared.violation, compared.along)
         self.lesson = Lesson(exposed=compared.exposed, gain=compared.gain, work=work,
                              mask=mask.copy(), violation=compared.violation,

@@ -28,7 +28,8 @@ class SampleBackground:
     """
 
     def __init__(self, *, samples: int = 20, radius: float = 20.0, min_matches: int = 2,
-                 subsample: int = 16, seed: int = 0) -> None:
+                 subsample: int = 16, seed: int = 0, radius_min: Optional[float] = None,
+                 radius_gain: float = 3.0, adapt: float = 0.05) -> None:
         if not 1 <= min_matches <= samples:
             raise InputError(f"min_matches must be between 1 and samples ({samples}), "
                              f"not {min_matches}")
@@ -36,6 +37,11 @@ class SampleBackground:
         self.min_matches, self.subsample = int(min_matches), int(subsample)
         self.rng = np.random.default_rng(seed)
         self.s: Optional[np.ndarray] = None  # (N, C, H, W) uint8, one plane per channel
+        self.radius_min = self.radius if radius_min is None else float(radius_min)
+        self.radius_gain, self.adapt = float(radius_gain), float(adapt)
+        self.spread: Optional[np.ndarray] = None  # (H, W) float32: each pixel's usual distance
+        self._seen = 0
+        self._last: Optional[np.ndarray] = None  # (H, W) uint8: the last score's distances
 
     @staticmethod
     def _planes(frame: np.ndarray) -> np.ndarray:
@@ -66,6 +72,16 @@ class SampleBackground:
             dx = self.rng.integers(-1, 2, (h, w))
             np.take(pad, centre + dy * (w + 2) + dx, axis=1, out=s[k])
         self.s = s
+        self.spread, self._seen, self._last = None, 0, None
+
+    def radii(self) -> Optional[np.ndarray]:
+        """``(H, W) float32``: each pixel's radius, ``radius_min`` plus ``radius_gain`` times
+        its usual distance to its samples (a running mean over the frames where it was
+        background), at most ``radius``; None while the radius is one for all pixels."""
+        if self.radius_min >= self.radius or self.spread is None:
+            return None
+        r = self.spread * np.float32(self.radius_gain) + np.float32(self.radius_min)
+        return np.minimum(r, np.float32(self.radius), out=r)
 
     def score(self, frame: np.ndarray) -> np.ndarray:
         """``(H, W) float32``: the ``min_matches``-th smallest sample distance / ``radius`` (1 =
@@ -75,7 +91,12 @@ class SampleBackground:
         if self.s is None:
             return np.zeros(f.shape[1:], np.float32)
         self._check(f)
-        return self._kth(self.s, f).astype(np.float32) * np.float32(1.0 / self.radius)
+        kth = self._kth(self.s, f)
+        self._last = kth
+        radii = self.radii()
+        if radii is None:
+            return kth.astype(np.float32) * np.float32(1.0 / self.radius)
+        return kth.astype(np.float32) / radii
 
     def _kth(self, samples: np.ndarray, f: np.ndarray) -> np.ndarray:
         """``(H, W) uint8``: the ``min_matches``-th smallest distance of the ``(C, H, W)``
@@ -116,6 +137,7 @@ class SampleBackground:
         learn = None
         if fgmask is not None and learning_rate < 0:
             learn = ~np.asarray(fgmask, bool)
+        self._learn_spread(learn)
         at = self._draw(h * w, p, learn)
         self._put(f, at, at)
         at = self._draw(h * w, p, learn)
@@ -123,6 +145,20 @@ class SampleBackground:
         ny = np.clip(ys + self.rng.integers(-1, 2, at.size), 0, h - 1)
         nx = np.clip(xs + self.rng.integers(-1, 2, at.size), 0, w - 1)
         self._put(f, at, ny * w + nx)
+
+    def _learn_spread(self, learn: Optional[np.ndarray]) -> None:
+        """Fold the last score's distances into each background pixel's usual distance: a
+        running mean that becomes an average over the last ``1 / adapt`` frames."""
+        if self._last is None or self.radius_min >= self.radius:
+            return
+        d = self._last.astype(np.float32)
+        self._seen += 1
+        if self.spread is None:
+            self.spread = d
+            return
+        a = np.float32(max(self.adapt, 1.0 / self._seen))
+        new = self.spread + a * (d - self.spread)
+        self.spread = new if learn is None else np.where(learn, new, self.spread)
 
     def _put(self, f: np.ndarray, source: np.ndarray, target: np.ndarray) -> None:
         """Each pixel of ``f`` ((C, H, W) uint8) at the flat positions ``source`` ((K,) int)

@@ -70,12 +70,16 @@ class StillCameraSwitch:
     """
 
     def __init__(self, *, still_model: float, still_snr: float, window: int,
-                 still_versus: float = 0.0) -> None:
+                 still_versus: float = 0.0, radius: float = 20.0,
+                 spread: float = 0.0) -> None:
         self.still_model = float(still_model)
         self.still_snr = float(still_snr)
         self.still_versus = float(still_versus)
         self.window = max(int(window), 1)
-        self.model = SampleBackground()
+        # Each pixel's radius: ``radius`` where it holds still, wider by ``spread`` times its
+        # usual distance to its samples (0: one radius of 20 for all).
+        self.model = (SampleBackground(radius_min=radius, radius_gain=spread) if spread > 0
+                      else SampleBackground())
         # (fraction the sample model calls foreground, motion_snr, how far it calls more than
         # still_versus times the compensated model where that one is not blind) of the last
         # frames.

@@ -15,6 +15,7 @@ from typing import Any, Dict, Mapping
 
 from bgsub.background.compensated import BackgroundConfig
 from bgsub.background.fusion import FusionConfig
+from bgsub.background.overlay import OverlayConfig
 from bgsub.camera.config import CameraConfig
 from bgsub.engines.base import LEARNING_RATE, Param
 from bgsub.errors import InputError
@@ -92,6 +93,14 @@ class EngineConfig:
                                        "foreground; 0 = no comparison)", low=0)
     still_window: int = setting(9, "the still-camera tests (still_model, still_snr, "
                                    "still_versus) are medians over this many frames", low=1)
+    still_radius: float = setting(5.0, "the still-camera model's match radius (gray levels) "
+                                       "at a pixel that holds still; it widens with the "
+                                       "pixel's own usual distance to its samples "
+                                       "(still_spread), up to 20, so water and leaves keep a "
+                                       "wide one", above=0, high=20)
+    still_spread: float = setting(5.0, "the still-camera model's radius at a pixel widens by "
+                                       "this many times the pixel's usual distance to its "
+                                       "samples (0 = one radius of 20 for every pixel)", low=0)
     learning_rate: float = setting(LEARNING_RATE.default, LEARNING_RATE.help,
                                    high=LEARNING_RATE.high)
 
@@ -103,7 +112,7 @@ class EngineConfig:
 
 
 #: The engine's stage settings, in the order of its parameter table.
-STAGES = (EngineConfig, CameraConfig, BackgroundConfig, FusionConfig)
+STAGES = (EngineConfig, CameraConfig, BackgroundConfig, FusionConfig, OverlayConfig)
 
 
 def engine_params(front_params: Mapping[str, Param],

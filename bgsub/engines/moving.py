@@ -40,6 +40,7 @@ from bgsub.background.foreground import Foreground
 from bgsub.background.fusion import Fusion, FusionConfig
 from bgsub.background.guided import guided_mask
 from bgsub.background.object_colour import ObjectColours
+from bgsub.background.overlay import OverlayConfig, OverlayDetector
 from bgsub.background.persistence import BlobPersistence
 from bgsub.background.scene_cut import SceneCut
 from bgsub.background.still_switch import NoStillSwitch, StillCameraSwitch
@@ -48,7 +49,7 @@ from bgsub.engines.base import (Engine, Param, check_fgmask, check_frame, check_
                                 opencv_keywords, register_engine)
 from bgsub.engines.config import MIN_WORK_WIDTH, EngineConfig, engine_params, stage_configs
 from bgsub.engines.frontend import MotionFrontEnd
-from bgsub.engines.roi import WHOLE_FRAME
+from bgsub.engines.roi import WHOLE_FRAME, FrameLess
 from bgsub.engines.threads import SecondThread, limited_threads
 from bgsub.errors import InputError
 from bgsub.io.flowio import add_colour_wheel, draw_flow_arrows
@@ -171,6 +172,7 @@ class MovingCameraEngine(Engine):
                  camera: Optional[CameraConfig] = None,
                  background: Optional[BackgroundConfig] = None,
                  fusion: Optional[FusionConfig] = None,
+                 overlay: Optional[OverlayConfig] = None,
                  known_motion: Optional[KnownMotion] = None) -> None:
         defaults = stage_configs({}, frontend.stage_defaults)
         self.frontend = frontend
@@ -181,7 +183,8 @@ class MovingCameraEngine(Engine):
         self.fusion = Fusion(fusion or defaults[FusionConfig])
         self.still_switch = (StillCameraSwitch(still_model=c.still_model, still_snr=c.still_snr,
                                                window=c.still_window,
-                                               still_versus=c.still_versus)
+                                               still_versus=c.still_versus,
+                                               radius=c.still_radius, spread=c.still_spread)
                              if c.still_model > 0 else NoStillSwitch())
         self.thread = SecondThread(overlap=c.overlap, name=self.name)
         self.foreground = Foreground(
@@ -192,6 +195,8 @@ class MovingCameraEngine(Engine):
             object_colours=ObjectColours(radius=self.fusion.config.grow_radius,
                                          above=self.fusion.config.grow_above),
             alongside=self.thread.alongside)
+        self.overlays = OverlayDetector(overlay or defaults[OverlayConfig])
+        self._frame_less = FrameLess()
         self.last_status = "ok"
         self.previous = Previous()
         self._in_shape: Optional[tuple] = None  # the input frames' (H, W) or (H, W, 3)
@@ -232,7 +237,7 @@ class MovingCameraEngine(Engine):
         empty = np.zeros(gray.shape, np.uint8)
         if float(cv2.meanStdDev(gray)[1][0, 0]) < self.config.min_contrast:
             # Blank or textureless frame: no motion can be measured; keep the model as it is.
-            self.foreground.learn()
+            self._learn()
             self.last_status = "fallback: blank or textureless frame"
             return empty
         if prev.data is None:
@@ -253,22 +258,25 @@ class MovingCameraEngine(Engine):
             self.last_status = SCENE_CUT
             return empty
         prev.applied, prev.gain = seen.applied, float(compared.gain)
-        mask = self.foreground.decide(work, gray, seen.result, seen.matrix, compared, rate)
+        # (Outside a region of interest the mask is cleared by the engine's caller.)
+        mask = self.foreground.decide(work, gray, seen.result, seen.matrix, compared, rate,
+                                      region=WHOLE_FRAME if self.roi else self._region)
         prev.data, prev.gray, prev.work = cur, gray, work
         self.last_status = seen.status
         return mask
 
     @property
     def _region(self) -> Any:
-        """The region of interest, or :data:`~bgsub.engines.roi.WHOLE_FRAME`."""
-        return self.roi or WHOLE_FRAME
+        """The region of interest; without one, the frame less the frame-fixed overlays found
+        so far (:class:`~bgsub.engines.roi.FrameLess`), or the whole frame."""
+        return self.roi or self._frame_less.of(self.overlays.mask)
 
     def _motion(self, cur: Any, gray: np.ndarray) -> MotionResult:
         """The motion stage: the front end's motion from the previous frame to ``cur``, while
         the second thread applies the last frame's update and prepares ``cur`` for the next
         pair; over the region of interest's vectors only."""
         fit, prior = self.camera.fit_for(self._in_shape, gray.shape)
-        with self.thread.alongside(self.foreground.learn, lambda: self.frontend.prepare(cur)):
+        with self.thread.alongside(self._learn, lambda: self.frontend.prepare(cur)):
             if np.array_equal(gray, self.previous.gray):
                 # A repeated frame (a frame-rate conversion's duplicate, a paused stream): the
                 # camera did not move, whatever a noisy reading would say; a frozen model
@@ -276,7 +284,17 @@ class MovingCameraEngine(Engine):
                 return NO_MOTION
             result = self.frontend.measure(self.previous.data, cur, prior=prior,
                                            fit=self._region.restrict_fit(fit))
+        if self.roi is None:  # (a region of interest given replaces the overlays' detection)
+            self.overlays.observe(gray, result.points, result.disp, result.weights,
+                                  camera_still=self.camera_still)
         return self._region.restrict(result, gray.shape)
+
+    def _learn(self) -> None:
+        """The learn stage: the last frame's deferred update of the models, after which the
+        compensated model keeps no history of the overlays (a warp would drag it over the
+        scene)."""
+        self.foreground.learn()
+        self.overlays.forget_in(self.bg)
 
     def _restart(self, work: np.ndarray, gray: np.ndarray, data: Any) -> None:
         """Start every stage over from ``work`` (the frame; ``gray`` its gray image, ``data``
@@ -307,6 +325,16 @@ class MovingCameraEngine(Engine):
     def camera_still(self) -> bool:
         """Whether the last frame was taken as seen by a still camera (``still_model``)."""
         return self.still_switch.camera_still
+
+    @property
+    def overlay_box(self) -> Optional[tuple]:
+        """``(x, y, w, h)`` in input pixels around the frame-fixed overlays found (a logo, a
+        watermark, a timestamp, letterbox bars: taken as background), or None."""
+        box = self.overlays.box()
+        if box is None or self._in_shape is None:
+            return box
+        scale = self._in_shape[1] / self.overlays.mask.shape[1]
+        return tuple(int(round(v * scale)) for v in box)
 
     @property
     def last_result(self) -> Optional[MotionResult]:
@@ -457,7 +485,8 @@ def register_frontend(frontend_type: Type[MotionFrontEnd]) -> None:
         return MovingCameraEngine(frontend, engine=stages[EngineConfig],
                                   camera=stages[CameraConfig],
                                   background=stages[BackgroundConfig],
-                                  fusion=stages[FusionConfig], known_motion=given)
+                                  fusion=stages[FusionConfig], overlay=stages[OverlayConfig],
+                                  known_motion=given)
 
     factory.__module__ = frontend_type.__module__  # the engine is the front end's
     register_engine(name, frontend_type.description, params,

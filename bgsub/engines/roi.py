@@ -20,7 +20,7 @@ import numpy as np
 
 from bgsub.errors import InputError
 
-__all__ = ["RegionOfInterest", "WholeFrame", "WHOLE_FRAME", "ROI_HELP"]
+__all__ = ["RegionOfInterest", "WholeFrame", "WHOLE_FRAME", "FrameLess", "ROI_HELP"]
 
 #: What the ``roi`` parameter every engine takes means (``bgsub methods``).
 ROI_HELP = ("region of interest: a mask image (white = watched; the frames' size or their "
@@ -162,6 +162,29 @@ class WholeFrame:
     def unwatched(young: np.ndarray) -> np.ndarray:
         return young
 
+    @staticmethod
+    def clear_outside(mask: np.ndarray) -> None:
+        pass
+
 
 #: The region of interest of an engine without one.
 WHOLE_FRAME = WholeFrame()
+
+
+class FrameLess:
+    """The frame less the ``(h, w) bool`` pixels an engine found it must not watch (frame-fixed
+    overlays, :mod:`bgsub.background.overlay`), as a region of interest: :meth:`of` gives it
+    for the latest such mask, made anew only when the mask changes."""
+
+    def __init__(self) -> None:
+        self._mask: Any = None
+        self._region: Any = WHOLE_FRAME
+
+    def of(self, excluded: Any) -> Any:
+        """The region without the ``excluded`` pixels ((h, w) bool), or :data:`WHOLE_FRAME`
+        for None."""
+        if excluded is not self._mask:
+            self._mask = excluded
+            self._region = (WHOLE_FRAME if excluded is None
+                            else RegionOfInterest(~excluded, name="the frame less its overlays"))
+        return self._region

@@ -9,6 +9,9 @@
   colours, with the holes it and the frame's edges enclose filled;
 * learn (:meth:`Foreground.learn`): the models' update, deferred to the next frame, where it
   runs in the second thread beside the motion front end.
+
+The settings of the policies these stages apply (exposure matching, the scene cut, the
+still-camera switch) are one :class:`ForegroundConfig`.
 """
 
 from __future__ import annotations
@@ -24,8 +27,60 @@ from bgsub.background.object_colour import ObjectColours
 from bgsub.background.persistence import BlobPersistence
 from bgsub.background.scene_cut import SceneCut
 from bgsub.motion.result import MotionResult
+from bgsub.settings import check_settings, setting
 
-__all__ = ["Comparison", "Lesson", "Foreground"]
+__all__ = ["ForegroundConfig", "Comparison", "Lesson", "Foreground"]
+
+
+@dataclass(frozen=True)
+class ForegroundConfig:
+    """Settings of the foreground policies: exposure matching
+    (:func:`~bgsub.background.exposure.match_exposure`), the scene cut
+    (:class:`~bgsub.background.scene_cut.SceneCut`) and the still-camera switch
+    (:class:`~bgsub.background.still_switch.StillCameraSwitch`)."""
+
+    match_exposure: bool = setting(True, "divide each frame by its brightness gain against "
+                                         "the compensated background model (the median ratio "
+                                         "of their colours) before the model compares and "
+                                         "learns it, while the model follows the gain at its "
+                                         "learning rate, so auto exposure or a whole frame's "
+                                         "flicker is not taken for foreground")
+    scene_cut: float = setting(0.5, "restart the model when more than this fraction of the "
+                                    "pixels with history differ from it while few motion "
+                                    "vectors agree with the fitted motion (cut_support)",
+                               low=0, high=1)
+    cut_support: float = setting(0.35, "a scene cut (scene_cut) needs fewer than this fraction "
+                                       "of the motion vectors to agree with the fitted motion "
+                                       "(more than 80 % of the pixels differing is a cut "
+                                       "whatever the motion)", low=0, high=1)
+    still_model: float = setting(0.15, "take the camera as still, and use a never-warped sample "
+                                       "background model (water, foam, leaves), while that "
+                                       "model calls less than this fraction of the frame "
+                                       "foreground and still_snr and still_versus agree "
+                                       "(0 = off)", low=0, high=1)
+    still_snr: float = setting(4.0, "the camera is taken as still (still_model) only while the "
+                                    "fitted camera motion is less than this many times the "
+                                    "scatter of the motion vectors about it (no rigid motion "
+                                    "stands out)", low=0)
+    still_versus: float = setting(4.0, "the camera is taken as still (still_model) only while "
+                                       "the sample model calls at most this many times the "
+                                       "fraction the compensated model calls, plus 0.5 %, "
+                                       "where that one is not blind (a slow pan drifts the "
+                                       "never-warped model's fine texture into false "
+                                       "foreground; 0 = no comparison)", low=0)
+    still_window: int = setting(9, "the still-camera tests (still_model, still_snr, "
+                                   "still_versus) are medians over this many frames", low=1)
+    still_radius: float = setting(5.0, "the still-camera model's match radius (gray levels) "
+                                       "at a pixel that holds still; it widens with the "
+                                       "pixel's own usual distance to its samples "
+                                       "(still_spread), up to 20, so water and leaves keep a "
+                                       "wide one", above=0, high=20)
+    still_spread: float = setting(5.0, "the still-camera model's radius at a pixel widens by "
+                                       "this many times the pixel's usual distance to its "
+                                       "samples (0 = one radius of 20 for every pixel)", low=0)
+
+    def __post_init__(self) -> None:
+        check_settings(self)
 
 
 @dataclass

@@ -64,9 +64,12 @@ def describe(spec: EngineSpec, *, is_default: bool) -> Dict[str, Any]:
 
 
 # The titles of the moving-camera engine's stages (bgsub.engines.config.STAGES), by class name.
-_STAGE_TITLES = {"EngineConfig": "engine (frame size, threads, scene cuts, still camera)",
+_STAGE_TITLES = {"EngineConfig": "engine (frame size, mask edges, threads, blank frames)",
                  "CameraConfig": "camera motion (RANSAC fit)",
-                 "BackgroundConfig": "background model", "FusionConfig": "foreground decision"}
+                 "BackgroundConfig": "background model",
+                 "ForegroundConfig": "foreground policies (exposure, scene cuts, still camera)",
+                 "FusionConfig": "foreground decision",
+                 "OverlayConfig": "frame-fixed overlays (logo, watermark, timestamp)"}
 
 
 def stage_names(spec: EngineSpec) -> List[str]:

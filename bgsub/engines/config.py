@@ -1,8 +1,10 @@
 """Settings of the moving-camera engine around its stages (:class:`EngineConfig`).
 
 With the camera stage's (:class:`~bgsub.camera.config.CameraConfig`), the background model's
-(:class:`~bgsub.background.compensated.BackgroundConfig`), the fusion's
-(:class:`~bgsub.background.fusion.FusionConfig`) and the front end's settings they make an
+(:class:`~bgsub.background.compensated.BackgroundConfig`), the foreground policies'
+(:class:`~bgsub.background.foreground.ForegroundConfig`), the fusion's
+(:class:`~bgsub.background.fusion.FusionConfig`), the overlay detection's
+(:class:`~bgsub.background.overlay.OverlayConfig`) and the front end's settings they make an
 engine's parameters: :func:`engine_params` generates its ``Param`` table from their fields,
 :func:`stage_configs` builds them back from parameter values.
 """
@@ -14,6 +16,7 @@ from dataclasses import dataclass
 from typing import Any, Dict, Mapping
 
 from bgsub.background.compensated import BackgroundConfig
+from bgsub.background.foreground import ForegroundConfig
 from bgsub.background.fusion import FusionConfig
 from bgsub.background.overlay import OverlayConfig
 from bgsub.camera.config import CameraConfig
@@ -21,8 +24,8 @@ from bgsub.engines.base import LEARNING_RATE, Param
 from bgsub.errors import InputError
 from bgsub.settings import check_settings, config_params, setting
 
-__all__ = ["MIN_WORK_WIDTH", "CameraConfig", "EngineConfig", "STAGES", "engine_params",
-           "stage_configs"]
+__all__ = ["MIN_WORK_WIDTH", "CameraConfig", "EngineConfig", "ForegroundConfig", "STAGES",
+           "engine_params", "stage_configs"]
 
 # The narrowest working frame: a few 13x13 patches across, so a motion can be read at all.
 # Resizing to ``work_width`` never makes the short side smaller than this either.
@@ -31,8 +34,9 @@ MIN_WORK_WIDTH = 32
 
 @dataclass(frozen=True)
 class EngineConfig:
-    """The engine around its stages: frame size, threads, the frames it does not process
-    normally (blank, scene cut), the still-camera switch and the default learning rate."""
+    """The engine around its stages: frame size, the mask's placement on the frame's edges,
+    threads, smoothing, the frames it does not process (blank) and the default learning
+    rate."""
 
     work_width: int = setting(320, "process frames resized to this width (0 = input size, else "
                                    f"at least {MIN_WORK_WIDTH}), but never to a height below "
@@ -60,47 +64,8 @@ class EngineConfig:
                                  "footage, whose pixel noise otherwise reads as motion and as "
                                  "background differences (1 suits sensor noise of 6 gray "
                                  "levels or JPEG quality 25; 0 = off)", low=0, high=8)
-    match_exposure: bool = setting(True, "divide each frame by its brightness gain against "
-                                         "the compensated background model (the median ratio "
-                                         "of their colours) before the model compares and "
-                                         "learns it, while the model follows the gain at its "
-                                         "learning rate, so auto exposure or a whole frame's "
-                                         "flicker is not taken for foreground")
     min_contrast: float = setting(4.0, "frames whose gray standard deviation is below this are "
                                        "blank or textureless: empty mask, model kept", low=0)
-    scene_cut: float = setting(0.5, "restart the model when more than this fraction of the "
-                                    "pixels with history differ from it while few motion "
-                                    "vectors agree with the fitted motion (cut_support)",
-                               low=0, high=1)
-    cut_support: float = setting(0.35, "a scene cut (scene_cut) needs fewer than this fraction "
-                                       "of the motion vectors to agree with the fitted motion "
-                                       "(more than 80 % of the pixels differing is a cut "
-                                       "whatever the motion)", low=0, high=1)
-    still_model: float = setting(0.15, "take the camera as still, and use a never-warped sample "
-                                       "background model (water, foam, leaves), while that "
-                                       "model calls less than this fraction of the frame "
-                                       "foreground and still_snr and still_versus agree "
-                                       "(0 = off)", low=0, high=1)
-    still_snr: float = setting(4.0, "the camera is taken as still (still_model) only while the "
-                                    "fitted camera motion is less than this many times the "
-                                    "scatter of the motion vectors about it (no rigid motion "
-                                    "stands out)", low=0)
-    still_versus: float = setting(4.0, "the camera is taken as still (still_model) only while "
-                                       "the sample model calls at most this many times the "
-                                       "fraction the compensated model calls, plus 0.5 %, "
-                                       "where that one is not blind (a slow pan drifts the "
-                                       "never-warped model's fine texture into false "
-                                       "foreground; 0 = no comparison)", low=0)
-    still_window: int = setting(9, "the still-camera tests (still_model, still_snr, "
-                                   "still_versus) are medians over this many frames", low=1)
-    still_radius: float = setting(5.0, "the still-camera model's match radius (gray levels) "
-                                       "at a pixel that holds still; it widens with the "
-                                       "pixel's own usual distance to its samples "
-                                       "(still_spread), up to 20, so water and leaves keep a "
-                                       "wide one", above=0, high=20)
-    still_spread: float = setting(5.0, "the still-camera model's radius at a pixel widens by "
-                                       "this many times the pixel's usual distance to its "
-                                       "samples (0 = one radius of 20 for every pixel)", low=0)
     learning_rate: float = setting(LEARNING_RATE.default, LEARNING_RATE.help,
                                    high=LEARNING_RATE.high)
 
@@ -112,7 +77,8 @@ class EngineConfig:
 
 
 #: The engine's stage settings, in the order of its parameter table.
-STAGES = (EngineConfig, CameraConfig, BackgroundConfig, FusionConfig, OverlayConfig)
+STAGES = (EngineConfig, CameraConfig, BackgroundConfig, ForegroundConfig, FusionConfig,
+          OverlayConfig)
 
 
 def engine_params(front_params: Mapping[str, Param],

@@ -36,7 +36,7 @@ import numpy as np
 
 from bgsub.background.compensated import BackgroundConfig, CompensatedBackground
 from bgsub.background.exposure import match_exposure, same_exposure
-from bgsub.background.foreground import Foreground
+from bgsub.background.foreground import Foreground, ForegroundConfig
 from bgsub.background.fusion import Fusion, FusionConfig
 from bgsub.background.guided import guided_mask
 from bgsub.background.object_colour import ObjectColours
@@ -171,26 +171,28 @@ class MovingCameraEngine(Engine):
     def __init__(self, frontend: MotionFrontEnd, *, engine: Optional[EngineConfig] = None,
                  camera: Optional[CameraConfig] = None,
                  background: Optional[BackgroundConfig] = None,
+                 foreground: Optional[ForegroundConfig] = None,
                  fusion: Optional[FusionConfig] = None,
                  overlay: Optional[OverlayConfig] = None,
                  known_motion: Optional[KnownMotion] = None) -> None:
         defaults = stage_configs({}, frontend.stage_defaults)
         self.frontend = frontend
         self.name = frontend.name or "moving-camera"
-        self.config = c = engine or defaults[EngineConfig]
+        self.config = engine or defaults[EngineConfig]
         self.camera = CameraStage(camera or defaults[CameraConfig], known_motion)
         self.bg = CompensatedBackground(background or defaults[BackgroundConfig])
         self.fusion = Fusion(fusion or defaults[FusionConfig])
-        self.still_switch = (StillCameraSwitch(still_model=c.still_model, still_snr=c.still_snr,
-                                               window=c.still_window,
-                                               still_versus=c.still_versus,
-                                               radius=c.still_radius, spread=c.still_spread)
-                             if c.still_model > 0 else NoStillSwitch())
-        self.thread = SecondThread(overlap=c.overlap, name=self.name)
+        f = foreground or defaults[ForegroundConfig]
+        self.still_switch = (StillCameraSwitch(still_model=f.still_model, still_snr=f.still_snr,
+                                               window=f.still_window,
+                                               still_versus=f.still_versus,
+                                               radius=f.still_radius, spread=f.still_spread)
+                             if f.still_model > 0 else NoStillSwitch())
+        self.thread = SecondThread(overlap=self.config.overlap, name=self.name)
         self.foreground = Foreground(
             self.bg, self.fusion, still_switch=self.still_switch,
-            exposure=match_exposure if c.match_exposure else same_exposure,
-            scene_cut=SceneCut(c.scene_cut, c.cut_support),
+            exposure=match_exposure if f.match_exposure else same_exposure,
+            scene_cut=SceneCut(f.scene_cut, f.cut_support),
             persistence=BlobPersistence(self.fusion.config.persist),
             object_colours=ObjectColours(radius=self.fusion.config.grow_radius,
                                          above=self.fusion.config.grow_above),
@@ -485,6 +487,7 @@ def register_frontend(frontend_type: Type[MotionFrontEnd]) -> None:
         return MovingCameraEngine(frontend, engine=stages[EngineConfig],
                                   camera=stages[CameraConfig],
                                   background=stages[BackgroundConfig],
+                                  foreground=stages[ForegroundConfig],
                                   fusion=stages[FusionConfig], overlay=stages[OverlayConfig],
                                   known_motion=given)
 

@@ -92,9 +92,9 @@ def test_common_parameters_help_texts_stand_alone(spec):
 
 
 def test_the_engine_stage_settings_help_texts_stand_alone():
-    from bgsub.engines.config import CameraConfig, EngineConfig
+    from bgsub.engines.config import CameraConfig, EngineConfig, ForegroundConfig
     from bgsub.settings import config_params
 
-    for stage in (EngineConfig, CameraConfig):
+    for stage in (EngineConfig, CameraConfig, ForegroundConfig):
         for name, param in config_params(stage).items():
             assert not param.help.startswith("..."), name

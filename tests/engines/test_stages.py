@@ -14,14 +14,16 @@ from bgsub.background.compensated import BackgroundConfig
 from bgsub.background.fusion import FusionConfig
 from bgsub.engines import get_engine_spec
 from bgsub.background.compensated import CompensatedBackground
-from bgsub.background.exposure import SATURATED, match_exposure
+from bgsub.background.exposure import SATURATED, match_exposure, same_exposure
+from bgsub.background.foreground import ForegroundConfig
 from bgsub.background.persistence import BlobPersistence
 from bgsub.background.scene_cut import SceneCut
-from bgsub.background.still_switch import StillCameraSwitch
+from bgsub.background.still_switch import NoStillSwitch, StillCameraSwitch
 from bgsub.camera import SMALL_REGION, CameraConfig, MotionHoldBack, SmallRegionRule
 from bgsub.engines.config import STAGES, EngineConfig, stage_configs
 from bgsub.engines.frontend import NO_MOTION, MotionResult
 from bgsub.engines.frontends.lucas_kanade import LucasKanadeFrontEnd
+from bgsub.engines.moving import MovingCameraEngine
 from bgsub.engines.threads import SecondThread
 from bgsub.errors import InputError
 from bgsub.motion.global_motion import GlobalMotion
@@ -255,6 +257,21 @@ def test_stage_configs_take_values_then_a_front_ends_defaults():
     stages = stage_configs({"threshold": 2.0, "unrelated": 1}, {"flow_boost": 1.5})
     assert stages[FusionConfig] == FusionConfig(threshold=2.0, flow_boost=1.5)
     assert stages[EngineConfig] == EngineConfig()
+
+
+def test_the_foreground_policies_are_built_from_their_stage_settings():
+    eng = MovingCameraEngine(LucasKanadeFrontEnd(), foreground=ForegroundConfig(
+        match_exposure=False, scene_cut=0.3, cut_support=0.2, still_model=0))
+    policies = eng.foreground
+    assert policies.exposure is same_exposure
+    assert (policies.scene_cut.scene_cut, policies.scene_cut.cut_support) == (0.3, 0.2)
+    assert isinstance(policies.still_switch, NoStillSwitch)
+
+
+def test_the_still_camera_switch_takes_its_stage_settings():
+    switch = MovingCameraEngine(LucasKanadeFrontEnd(), foreground=ForegroundConfig(
+        still_snr=2.5, still_versus=1.5, still_window=4)).still_switch
+    assert (switch.still_snr, switch.still_versus, switch.window) == (2.5, 1.5, 4)
 
 
 def _square_at(x, shape=(50, 60)):

@@ -6,13 +6,14 @@ can outvote the scene's in the camera fit (a logo over a flat sky), the model wa
 camera drags their imprint over the scene, and the frames' own evidence sees a thing that does
 not move with the camera.
 
-:class:`OverlayDetector` finds them from the frames alone: a textured pixel that is the same
-(within ``overlay_noise`` gray levels) as ``overlay_lag`` frames before, on frames where the
-scene's textured pixels mostly changed and the vectors elsewhere agree on one motion (a camera
-that moves, not water or a crowd), in at least ``overlay`` of such frames. The engine then
-leaves the overlay's vectors out of the fit and the evidence, calls no foreground there and
-keeps no history of it in the model (:meth:`~bgsub.background.compensated.
-CompensatedBackground.forget`).
+:class:`OverlayDetector` finds them on the frames where the scene's textured pixels mostly
+changed and the vectors elsewhere agree on one motion (a camera that moves, not water or a crowd):
+a textured pixel that is the same (within ``overlay_noise`` gray levels) as ``overlay_lag``
+frames before in at least ``overlay`` of such frames, or whose edge stays sharp in their running
+mean (a semi-transparent watermark), where the vectors read no motion at all (a subject the
+camera follows reads its wander). The engine then leaves the overlay's vectors out of the fit
+and the evidence, calls no foreground there and keeps no history of it in the model
+(``CompensatedBackground.forget``).
 """
 
 from __future__ import annotations
@@ -92,7 +93,8 @@ class OverlayDetector:
 
     Per frame: :meth:`observe` the frame and its motion vectors; :attr:`mask` is then the
     ``(h, w) bool`` overlay found so far (None while there is none). :meth:`reset` starts
-    over (a new shot)."""
+    over; the engine keeps what it found across a scene cut (a broadcaster's logo outlives
+    the shot)."""
 
     def __init__(self, config: Optional[OverlayConfig] = None) -> None:
         self.config = config or OverlayConfig()

@@ -80,3 +80,51 @@ def test_sample_model_background_image_has_the_frames_shape(shape):
     model.reset(np.full(shape, 77, np.uint8))
     img = model.background_image()
     assert img.shape == shape and img.dtype == np.uint8 and (img == 77).all()
+
+
+def _learn(model, frames):
+    """Score and learn each frame as background, as the still-camera switch does."""
+    for frame in frames:
+        model.score(frame)
+        model.update(frame)
+
+
+def _calm_and_rippling(n, seed=0):
+    """``n`` (40, 50) frames: gray 100 with sensor noise, the right half rippling (water: each
+    pixel swings by up to 30 gray levels from frame to frame)."""
+    rng = np.random.default_rng(seed)
+    frames = []
+    for _ in range(n):
+        f = 100 + rng.normal(0, 1, (40, 50))
+        f[:, 25:] += rng.uniform(-30, 30, (40, 25))
+        frames.append(np.clip(f, 0, 255).astype(np.uint8))
+    return frames
+
+
+def test_one_radius_for_all_pixels_without_a_spread():
+    model = SampleBackground(radius=20)
+    _learn(model, _calm_and_rippling(10))
+    assert model.radii() is None
+
+
+def test_a_rippling_pixel_gets_a_wider_radius_than_a_calm_one():
+    model = SampleBackground(radius=20, radius_min=5, radius_gain=5)
+    _learn(model, _calm_and_rippling(30))
+    radii = model.radii()
+    assert radii.shape == (40, 50) and radii.dtype == np.float32
+    assert radii.min() >= 5 and radii.max() <= 20
+    assert np.median(radii[:, :25]) < 8 < 15 < np.median(radii[:, 25:])
+
+
+def test_a_faint_object_on_a_calm_pixel_is_found_with_a_radius_per_pixel():
+    # A car in fog: 12 gray levels brighter than the calm background. One radius of 20 misses it;
+    # the calm pixels' own radius finds it, while the rippling half stays background.
+    frames = _calm_and_rippling(31)
+    test = frames.pop().copy()
+    test[10:20, 5:15] += 12
+    for model, found in ((SampleBackground(radius=20), False),
+                         (SampleBackground(radius=20, radius_min=5, radius_gain=5), True)):
+        _learn(model, frames)
+        score = model.score(test)
+        assert (np.mean(score[10:20, 5:15] > 1.0) > 0.9) == found
+        assert np.mean(score[:, 25:] > 1.0) < 0.05

@@ -274,6 +274,15 @@ def test_the_still_camera_switch_takes_its_stage_settings():
     assert (switch.still_snr, switch.still_versus, switch.window) == (2.5, 1.5, 4)
 
 
+def test_the_still_camera_models_radius_per_pixel_takes_its_stage_settings():
+    model = MovingCameraEngine(LucasKanadeFrontEnd(), foreground=ForegroundConfig(
+        still_radius=7, still_spread=2)).still_switch.model
+    assert (model.radius_min, model.radius_gain, model.radius) == (7, 2, 20)
+    flat = MovingCameraEngine(LucasKanadeFrontEnd(), foreground=ForegroundConfig(
+        still_spread=0)).still_switch.model
+    assert flat.radius_min == flat.radius == 20  # one radius for every pixel
+
+
 def _square_at(x, shape=(50, 60)):
     mask = np.zeros(shape, np.uint8)
     mask[20:30, x:x + 10] = 255

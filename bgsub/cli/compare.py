@@ -80,9 +80,11 @@ def with_preset(params: Dict[str, Dict[str, Any]], methods: List[str],
     if preset is None:
         return params
     specs = [get_engine_spec(m) for m in methods]
-    having = [spec for spec in specs if spec.presets] or specs[:1]
+    having = [spec for spec in specs if spec.presets]
+    if not having:
+        specs[0].preset_values(preset)  # the refusal, naming the engines that have presets
     merged = dict(params)
-    for spec in having:  # (one with none: its refusal names the methods that have them)
+    for spec in having:
         merged[spec.name] = {**spec.preset_values(preset), **params.get(spec.name, {})}
     return merged
 

@@ -13,7 +13,7 @@ from typing import Any, Dict, Iterable, List, Mapping, Optional
 from bgsub.engines import get_engine_spec
 from bgsub.engines.base import BALANCED
 from bgsub.errors import InputError
-from bgsub.evaluation.bench import BenchReport, _count, _time_engine, machine_info, make_clip
+from bgsub.evaluation.bench import BenchReport, _count, time_engine, machine_info, make_clip
 
 #: The engine every preset is timed against.
 BASELINE = "mog2"
@@ -93,7 +93,7 @@ def bench_presets(*, method: str = "grbm", width: int = 320, height: int = 240,
     engines; ``params`` override every preset's values; ``accuracy``: :func:`read_accuracy`'s."""
     spec = get_engine_spec(method)
     if not spec.presets:
-        spec.preset_values("")  # the one-line refusal of an engine without presets
+        spec.preset_values(BALANCED)  # refused: one line naming the engines that have presets
     if frames < 1 or repeats < 1:
         raise InputError("bench: --max-frames and --repeats must be at least 1")
     chosen = {name: {**spec.preset_values(name), **(params or {})} for name in spec.presets}
@@ -104,7 +104,7 @@ def bench_presets(*, method: str = "grbm", width: int = 320, height: int = 240,
     for _ in range(repeats):
         for name, values in [*chosen.items(), (BASELINE, {})]:
             engine_name = BASELINE if name == BASELINE else method
-            runs[name].append(frames / max(_time_engine(engine_name, values, clip), 1e-9))
+            runs[name].append(frames / max(time_engine(engine_name, values, clip), 1e-9))
     base = float(statistics.median(runs[BASELINE]))
     report = PresetReport(method, BenchReport(width=width, height=height, frames=frames,
                                               repeats=repeats, clip=description,

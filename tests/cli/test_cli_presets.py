@@ -41,6 +41,23 @@ def test_each_preset_runs_end_to_end_and_finds_the_objects(preset, pan_clip, tmp
     assert _f_measure(masks, PAN) > 0.5
 
 
+def test_param_and_config_override_the_preset(pan_clip, tmp_path, monkeypatch):
+    from bgsub import engines
+
+    made = []
+
+    def create_engine(*args, **params):
+        made.append(engines.base.create_engine(*args, **params))
+        return made[-1]
+
+    monkeypatch.setattr(engines, "create_engine", create_engine)  # (the run's engine, seen)
+    config = tmp_path / "settings.toml"
+    config.write_text("work_width = 200\nedge_radius = 4\n")
+    assert main(["run", str(pan_clip), "-o", str(tmp_path / "m.mkv"), "--preset", "fast",
+                 "--config", str(config), "-p", "edge_radius=6", "--max-frames", "2", "-q"]) == 0
+    assert (made[-1].config.work_width, made[-1].config.edge_radius) == (200, 6)
+
+
 @pytest.mark.parametrize("command", [
     ["run", "missing.avi", "-o", "masks.mkv"],
     ["compare", "missing.avi", "-o", "report", "-m", "grbm,mog2"],

@@ -23,6 +23,7 @@ Usage (minutes; two sequences at a time with ``--jobs 2``)::
     OMP_NUM_THREADS=1 python benchmarks/accuracy.py --set real --half all -m grbm -p flow_boost=1
     OMP_NUM_THREADS=1 python benchmarks/accuracy.py --set generated --oracle-camera -m grbm
     OMP_NUM_THREADS=1 python benchmarks/accuracy.py --set generated --degrade jpeg=25
+    OMP_NUM_THREADS=1 python benchmarks/accuracy.py --set real --preset fast --json real_fast.json
 
 The data folder is ``../shared/data`` beside the repository (``BGSUB_DATA`` overrides it).
 ``--oracle-camera`` (generated only) replaces the camera-motion fit by the generator's true
@@ -51,7 +52,7 @@ from typing import Dict, List, Optional, Tuple
 import cv2
 import numpy as np
 
-from bgsub.engines import create_engine, parse_params
+from bgsub.engines import create_engine, get_engine_spec, parse_params
 from bgsub.evaluation.cdnet import count_frame
 from bgsub.motion.global_motion import GlobalMotion, apply_homography
 
@@ -263,6 +264,8 @@ def main(argv: Optional[List[str]] = None) -> int:
                          "as those ../shared/tools/scenes/gen_scenes2.py writes")
     ap.add_argument("-m", "--method", default="grbm")
     ap.add_argument("-p", "--param", action="append", default=[], metavar="KEY=VALUE")
+    ap.add_argument("--preset", default=None, help="the engine's named preset (-p over it); "
+                    "--json records it for `bgsub bench --presets --accuracy FILE`")
     ap.add_argument("--oracle-camera", action="store_true")
     ap.add_argument("--degrade", type=parse_degrade, metavar="KIND=VALUE",
                     help="degraded frames: noise=SIGMA, jpeg=QUALITY, soft=F, step=N, "
@@ -274,7 +277,8 @@ def main(argv: Optional[List[str]] = None) -> int:
                     help="the sample sets' scene seeds (default 0 1 2, the tuned ones; "
                          "others are scenes no default was chosen on)")
     args = ap.parse_args(argv)
-    params = parse_params(args.method, args.param)
+    params = {**get_engine_spec(args.method).preset_values(args.preset),
+              **parse_params(args.method, args.param)}
     if args.degrade and (args.set not in ("generated", "real") or
                          (args.oracle_camera and args.degrade[0] in ("step", "orbit"))):
         ap.error("--degrade needs --set generated or real (and step or orbit no --oracle-camera)")
@@ -284,7 +288,8 @@ def main(argv: Optional[List[str]] = None) -> int:
     with multiprocessing.get_context("fork").Pool(args.jobs) as pool:
         results = pool.map(run_sequence, todo, chunksize=1)
     summary = summarise(args.set, results)
-    label = f"{args.method} {args.set}/{args.half} {' '.join(args.param)}".strip()
+    preset = [f"--preset {args.preset}"] if args.preset else []
+    label = " ".join([args.method, f"{args.set}/{args.half}", *preset, *args.param])
     if args.degrade:
         label += " degraded {}={:g}".format(*args.degrade)
     fams = "  ".join(f"{k} {v:.3f}" for k, v in summary["families"].items())

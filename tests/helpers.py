@@ -24,6 +24,17 @@ def one_error_line(argv, capfd, *, code: int = 2) -> str:
     return err
 
 
+def batch_results(capsys, argv) -> list:
+    """Run the batch ``bgsub argv --json`` (it must succeed); ``(status, message)`` of each of
+    its inputs, from its summary."""
+    import json
+
+    from bgsub.cli import main
+
+    assert main(argv + ["--json"]) == 0
+    return [(r["status"], r["message"]) for r in json.loads(capsys.readouterr().out)["results"]]
+
+
 class OracleMatcher:
     """Exhaustive SSD block matching over integer shifts within +-max_disp (test double)."""
 

@@ -53,6 +53,8 @@ class RunJob:
     writing : dict
         How the outputs are written: ``codec``, ``min_object_area`` (the fields of
         :class:`~bgsub.io.pipeline.OutputRequest` beyond the paths).
+    preset : str or None
+        The engine's named preset (``params`` over its values; part of the record's settings).
     """
 
     input: str
@@ -67,6 +69,7 @@ class RunJob:
     threads: int = 1
     progress: bool = False
     writing: Dict[str, Any] = field(default_factory=dict)
+    preset: Optional[str] = None
 
     def settings(self) -> Dict[str, Any]:
         """The settings its completion record holds (see :func:`record.settings`), with the
@@ -75,7 +78,11 @@ class RunJob:
         held = record.settings(input_path=self.input, method=self.method, params=self.params,
                                source=self.source)
         writing = {k: v for k, v in self.writing.items() if v not in (None, "auto")}
-        return {**held, "writing": writing} if writing else held
+        if writing:
+            held["writing"] = writing
+        if self.preset is not None:  # (records of runs without one stay as they were)
+            held["preset"] = self.preset
+        return held
 
 
 @dataclass
@@ -134,7 +141,7 @@ def _process(job: RunJob, loop_stats: List[Any], should_stop: Optional[StopCheck
     from bgsub.io.writers import ProgressBar
 
     source = open_source(job.input, **job.source)
-    engine = engines.create_engine(job.method, **job.params, **job.run_params)
+    engine = engines.create_engine(job.method, job.preset, **job.params, **job.run_params)
     with contextlib.ExitStack() as stack:
         stack.enter_context(source)
         stack.callback(getattr(engine, "close", lambda: None))  # its second thread, if any

@@ -59,19 +59,21 @@ class BatchReport:
 def plan(items: Iterable[BatchInput], layout: OutputLayout, *, method: str,
          params: Mapping[str, Any], run_params: Mapping[str, Any],
          source: Mapping[str, Any], overwrite: bool, threads: int, progress: bool = False,
-         writing: Optional[Mapping[str, Any]] = None) -> Tuple[List[RunJob], List[JobResult]]:
+         writing: Optional[Mapping[str, Any]] = None,
+         preset: Optional[str] = None) -> Tuple[List[RunJob], List[JobResult]]:
     """The jobs to run, and the results of the inputs that need none (complete outputs:
     ``skipped``, with the reason when they were made with other settings; outputs that are not
     the batch's to replace: ``failed``, with the reason).
     ``progress``: the jobs show a bar over their frames (when they run in this process);
-    ``writing``: how the outputs are written (:attr:`RunJob.writing`)."""
+    ``writing``: how the outputs are written (:attr:`RunJob.writing`); ``preset``: the
+    engine's named preset (:attr:`RunJob.preset`)."""
     jobs: List[RunJob] = []
     settled: List[JobResult] = []
     for item in items:
         outputs = layout.outputs(item.name)
         job = RunJob(item.path, item.name, outputs, layout.record(item.name), method,
                      dict(params), dict(run_params), dict(source), overwrite, threads, progress,
-                     dict(writing or {}))
+                     dict(writing or {}), preset)
         decision, refused = record.decide(job.record, settings=job.settings(),
                                           outputs=outputs, overwrite=overwrite)
         if decision == record.SKIP and is_live(item.path):
@@ -124,12 +126,13 @@ def execute(executor: Any, fn: Callable[..., Any], items: List[Any], *,
             executor.stop()
 
 
-def check_method(method: str, params: Mapping[str, Any], layout: OutputLayout) -> None:
-    """Refuse, before any input is read, a method or parameters that every input would fail
-    with: unknown ones, or side outputs the method cannot make."""
+def check_method(method: str, params: Mapping[str, Any], layout: OutputLayout,
+                 preset: Optional[str] = None) -> None:
+    """Refuse, before any input is read, a method, preset or parameters that every input would
+    fail with: unknown ones, or side outputs the method cannot make."""
     from bgsub import engines
 
-    engine = engines.create_engine(method, **params)
+    engine = engines.create_engine(method, preset, **params)
     getattr(engine, "close", lambda: None)()  # its second thread, if any
     if layout.flow_vis and not callable(getattr(engine, "debug_image", None)):
         raise InputError(f"--flow-vis: method {method!r} cannot draw its motion (it has no "

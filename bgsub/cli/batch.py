@@ -139,7 +139,7 @@ def _prepare(args: argparse.Namespace, *, method: str, params: dict, reads: list
     outputs = [(flag, path) for item in items for flag, path in layout.flagged(item.name)]
     common.check_distinct([item.path for item in items] + reads,
                           outputs + [("--summary", args.summary)])
-    runner.check_method(method, params, layout)
+    runner.check_method(method, params, layout, args.preset)
     if args.summary:
         check_summary(args.summary, layout, overwrite=args.overwrite)
     return items, layout, jobs, per_job
@@ -211,7 +211,8 @@ def run_batch(args: argparse.Namespace, *, method: str, params: dict, reads: lis
                                     overwrite=args.overwrite, threads=per_job,
                                     progress=jobs == 1 and not args.scheduler and not args.quiet,
                                     writing={"codec": args.codec,
-                                             "min_object_area": args.min_object_area})
+                                             "min_object_area": args.min_object_area},
+                                    preset=args.preset)
         results = {result.name: result for result in settled}
         bar = tqdm(total=len(items), initial=len(settled), unit="input", desc=method,
                    file=sys.stderr, disable=args.quiet or not sys.stderr.isatty(), leave=False)
@@ -227,8 +228,8 @@ def run_batch(args: argparse.Namespace, *, method: str, params: dict, reads: lis
 
         with bar:
             interrupted = runner.execute(executor, run_input, todo, on_outcome=on_outcome)
-    settings = {"method": method, "params": params, "jobs": jobs, "threads_per_job": per_job,
-                "scheduler": args.scheduler}
+    settings = {"method": method, "preset": args.preset, "params": params, "jobs": jobs,
+                "threads_per_job": per_job, "scheduler": args.scheduler}
     report = runner.BatchReport([results[item.name] for item in items], interrupted, settings)
     if args.json:
         print(json.dumps(report.to_dict(), default=str), flush=True)

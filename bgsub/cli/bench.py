@@ -7,8 +7,8 @@ import json
 import re
 from typing import Any, Tuple
 
-from bgsub.cli.common import add_deprecated
-from bgsub.cli.compare import add_param_option, parse_method_params, parse_methods
+from bgsub.cli.common import add_deprecated, add_preset_option
+from bgsub.cli.compare import add_param_option, parse_method_params, parse_methods, with_preset
 from bgsub.errors import InputError
 
 _DESCRIPTION = """\
@@ -25,6 +25,7 @@ examples:
   bgsub bench --methods grbm,mog2 --size 640x480 --max-frames 100 --repeats 1
   bgsub bench --methods mog2 --memory --json       also peak memory, as JSON
   OMP_NUM_THREADS=1 bgsub bench --methods grbm     single-threaded figure
+  bgsub bench --presets --accuracy real.json --accuracy gen.json   each preset of grbm vs MOG2
 """
 
 
@@ -51,6 +52,15 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--repeats", type=int, default=3, metavar="R",
                         help="runs per method; the median is reported (default: 3)")
     add_param_option(parser)
+    add_preset_option(parser, more=" (of the methods that have presets)")
+    parser.add_argument("--presets", action="store_true",
+                        help="one table: each preset of grbm (or of the one -m method), its fps "
+                             "and its fps as a multiple of MOG2's, timed alternating in one "
+                             "process, and its development F from --accuracy")
+    parser.add_argument("--accuracy", action="append", default=[], metavar="FILE",
+                        help="with --presets: the real and generated development F of the "
+                             "presets, from files `benchmarks/accuracy.py --set SET --preset NAME "
+                             "--json FILE` writes (repeatable; default: shown as -)")
     parser.add_argument("--memory", action="store_true",
                         help="also report peak memory (ru_maxrss), each method in its own process")
     parser.add_argument("--seed", type=int, default=0, help="seed of the generated clip")
@@ -74,18 +84,43 @@ def run(args: argparse.Namespace) -> int:
     from bgsub.engines import available_engines
 
     width, height = parse_size(args.size)
+    if args.presets:
+        return _run_presets(args, width, height)
+    if args.accuracy:
+        raise InputError("--accuracy is for --presets")
     # -m "" is a mistake, not "all" (as in `bgsub compare`)
     methods = (parse_methods(args.methods) if args.methods is not None
                else [spec.name for spec in available_engines()])
-    params = parse_method_params(args.param, methods)
+    params = with_preset(parse_method_params(args.param, methods), methods, args.preset)
     report = bench_methods(
         methods=methods, width=width, height=height, frames=args.max_frames, repeats=args.repeats,
         params=params, memory=args.memory, seed=args.seed,
         progress=lambda it, total, desc: progress(it, total=total, desc=desc, quiet=args.quiet,
                                                   unit="method"),
     )
+    _print(report, args)
+    return 0
+
+
+def _run_presets(args: argparse.Namespace, width: int, height: int) -> int:
+    """``bgsub bench --presets``: every preset of one engine beside MOG2."""
+    from bgsub.engines import default_method
+    from bgsub.evaluation.bench_presets import bench_presets, read_accuracy
+
+    methods = parse_methods(args.methods) if args.methods is not None else [default_method()]
+    if len(methods) != 1 or args.preset or args.memory:
+        raise InputError("--presets times every preset of one method (-m NAME) beside mog2; "
+                         "it takes no --preset or --memory")
+    params = parse_method_params(args.param, methods).get(methods[0], {})
+    report = bench_presets(method=methods[0], width=width, height=height,
+                           frames=args.max_frames, repeats=args.repeats, params=params,
+                           seed=args.seed, accuracy=read_accuracy(args.accuracy))
+    _print(report, args)
+    return 0
+
+
+def _print(report: Any, args: argparse.Namespace) -> None:
     if args.json:
         print(json.dumps(report.to_dict(), indent=2))
     else:
         print(report.to_text())
-    return 0

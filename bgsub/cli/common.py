@@ -42,6 +42,13 @@ def add_source_options(parser: argparse.ArgumentParser) -> None:
                        help="the input's frame rate (default: as stated, or 25)")
 
 
+def add_preset_option(parser: Any, *, more: str = "") -> None:
+    """``--preset NAME``: a named set of engine parameters (fast, balanced, accurate);
+    ``--param`` and ``--config`` override its values. ``more``: the rest of its help."""
+    parser.add_argument("--preset", default=None, metavar="NAME",
+                        help=f"named settings: fast, balanced (default), accurate{more}")
+
+
 def source_kwargs(args: argparse.Namespace) -> dict:
     """The keyword arguments of :func:`open_source` taken from :func:`add_source_options`."""
     return dict(start=args.start, stop=args.stop, step=args.step, scale=args.scale,

@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import argparse
-import difflib
 from pathlib import Path
 from typing import Any, Dict, List
 
 from bgsub.cli import batch
 from bgsub.cli.common import (add_codec_option, add_deprecated, add_output_options,
-                              add_source_options, describe_codec, note, source_kwargs, warn)
+                              add_preset_option, add_source_options, describe_codec, note,
+                              source_kwargs, warn)
 from bgsub.errors import InputError
 
 _DESCRIPTION = """\
@@ -71,6 +71,24 @@ def add_param_option(parser: Any) -> None:
                         metavar="[METHOD.]KEY=VALUE", help=_PARAM_HELP)
 
 
+def with_preset(params: Dict[str, Dict[str, Any]], methods: List[str],
+                preset: Any) -> Dict[str, Dict[str, Any]]:
+    """``params`` over ``preset``'s values for each of ``methods`` that has presets (the others
+    as they are); :class:`InputError` for a preset none of them has."""
+    from bgsub.engines import get_engine_spec
+
+    if preset is None:
+        return params
+    specs = [get_engine_spec(m) for m in methods]
+    having = [spec for spec in specs if spec.presets]
+    if not having:
+        specs[0].preset_values(preset)  # the refusal, naming the engines that have presets
+    merged = dict(params)
+    for spec in having:
+        merged[spec.name] = {**spec.preset_values(preset), **params.get(spec.name, {})}
+    return merged
+
+
 def register(subparsers: Any) -> None:
     parser = subparsers.add_parser(
         "compare",
@@ -90,6 +108,7 @@ def register(subparsers: Any) -> None:
                         help="comma-separated engines (default: all registered; see "
                              "`bgsub methods`)")
     add_param_option(parser)
+    add_preset_option(parser, more=" (of the methods that have presets)")
     parser.add_argument("--gt", default=None, metavar="SEQUENCE",
                         help="CDnet sequence folder with the ground truth of INPUT (default: "
                              "INPUT itself when it is one)")
@@ -148,6 +167,7 @@ def parse_method_params(pairs: List[str], methods: List[str]) -> Dict[str, Dict[
     method has, or a parameter the engine does not have.
     """
     from bgsub.engines import get_engine_spec, parse_params
+    from bgsub.engines.base import did_you_mean
 
     grouped: Dict[str, List[str]] = {}
     for pair in pairs:
@@ -163,10 +183,9 @@ def parse_method_params(pairs: List[str], methods: List[str]) -> Dict[str, Dict[
                                          if method in get_engine_spec(m).params]
         if not targets and len(methods) > 1:
             names = {n for m in methods for n in get_engine_spec(m).params}
-            close = difflib.get_close_matches(method, sorted(names), n=1)
-            guess = f"; did you mean {close[0]!r}?" if close else ""
             raise InputError(f"--param {pair!r}: none of the methods ({', '.join(methods)}) "
-                             f"has a parameter {method!r}{guess} (see `bgsub methods`)")
+                             f"has a parameter {method!r}{did_you_mean(method, sorted(names))} "
+                             "(see `bgsub methods`)")
         for target in targets or methods:  # (one method: its own error names its parameters)
             grouped.setdefault(target, []).append(f"{name if dot else method}={value}")
     return {method: parse_params(method, rest) for method, rest in grouped.items()}
@@ -182,7 +201,7 @@ def run(args: argparse.Namespace) -> int:
             get_engine_spec(name)  # unknown names: one line listing the available ones
     else:
         methods = [spec.name for spec in available_engines()]
-    params = parse_method_params(args.param, methods)
+    params = with_preset(parse_method_params(args.param, methods), methods, args.preset)
     if args.max_frames is not None and args.max_frames < 1:
         raise InputError(f"--max-frames takes a number >= 1, not {args.max_frames}")
     batch.for_workers(args, "input", "output", "gt")

@@ -12,8 +12,9 @@ from bgsub.engines import EngineSpec, available_engines, default_method, get_eng
 _DESCRIPTION = """\
 List the background-subtraction engines (the values of `bgsub run --method`), which one is the
 default, and the parameters each takes (set with `--param KEY=VALUE`), with default and meaning:
-the few most users tune, or with --all every one, grouped by stage. Engines marked "static camera
-only" are the classical baselines."""
+the few most users tune, or with --all every one, grouped by stage; and the named presets
+(`--preset NAME`) of those that have them. Engines marked "static camera only" are the classical
+baselines."""
 
 _EPILOG = """\
 examples:
@@ -60,6 +61,7 @@ def describe(spec: EngineSpec, *, is_default: bool) -> Dict[str, Any]:
             }
             for (key, p), stage in zip(spec.params.items(), stage_names(spec))
         },
+        "presets": {name: dict(values) for name, values in spec.presets.items()},
     }
 
 
@@ -148,8 +150,21 @@ def format_text(entries: List[Dict[str, Any]], *, every: bool = False) -> str:
                     lines.append(f"  {stage}:")
                 lines.extend(_param_lines({k: p for k, p in params.items()
                                            if p["stage"] == stage}))
+        lines.extend(_preset_lines(entry["presets"]))
         lines.append("")
     return "\n".join(lines).rstrip() + "\n"
+
+
+def _preset_lines(presets: Dict[str, Dict[str, Any]]) -> List[str]:
+    """The presets (``--preset NAME``), each with the values it sets; none for an engine
+    without presets."""
+    if not presets:
+        return []
+    width = max(len(name) for name in presets)
+    return ["  presets (--preset NAME; -p overrides their values):"] + [
+        f"    {name:<{width}}  " + (", ".join(f"{k}={_format_value(v)}" for k, v in values.items())
+                                   or "the defaults")
+        for name, values in presets.items()]
 
 
 def run(args: argparse.Namespace) -> int:

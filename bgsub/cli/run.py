@@ -56,6 +56,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                                              f"see `bgsub methods`)")
     parser.add_argument("-p", "--param", action="append", default=[], metavar="KEY=VAL",
                         help="an engine parameter, e.g. -p stride=12 (repeatable)")
+    common.add_preset_option(parser)
     parser.add_argument("--vis", metavar="VIDEO", default=None,
                         help="also the masks over the input, as a video")
     parser.add_argument("--flow-vis", metavar="VIDEO", default=None,
@@ -215,6 +216,7 @@ def _input_notes(args: argparse.Namespace, source: FrameSource, engine: Any) -> 
 def run(args: argparse.Namespace) -> int:
     method = _method(args.method)
     params = run_inputs.engine_params(args, method, run_extras.engine_params(args, method))
+    engines.get_engine_spec(method).preset_values(args.preset)  # (refused before any input)
     run_inputs.apply_max_frames(args)
     run_extras.tracker_config(args)  # (refused before any input is opened)
     if args.motion_in and batch.is_batch(args):
@@ -225,7 +227,7 @@ def run(args: argparse.Namespace) -> int:
         return status
     source, params = _open_input(args, params)
     info = source.info
-    engine = engines.create_engine(method, **params)
+    engine = engines.create_engine(method, args.preset, **params)
     if args.flow_vis and not engines.supports(engine, "debug_image"):
         raise InputError(f"--flow-vis: method {method!r} cannot draw its motion (it has no "
                          "debug_image); use a moving-camera method such as grbm")

@@ -20,7 +20,7 @@ import numbers
 import threading
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
-from typing import Any, Callable, Dict, Iterable, List, Optional, Tuple
+from typing import Any, Callable, Dict, Iterable, List, Mapping, Optional, Tuple
 
 import cv2
 import numpy as np
@@ -244,6 +244,16 @@ LEARNING_RATE = Param(-1.0, "background learning rate of every frame, as OpenCV'
 ROI = Param("", ROI_HELP)
 
 
+def did_you_mean(word: str, names: Iterable[str]) -> str:
+    """``"; did you mean 'x'?"`` for the name in ``names`` closest to ``word``, or ``""``."""
+    close = difflib.get_close_matches(word, list(names), n=1)
+    return f"; did you mean {close[0]!r}?" if close else ""
+
+
+#: The name of the preset that is an engine's defaults (``bgsub run --preset balanced``).
+BALANCED = "balanced"
+
+
 @dataclass(frozen=True)
 class EngineSpec:
     """A registered engine: how to build it and what can be tuned."""
@@ -255,6 +265,9 @@ class EngineSpec:
     #: The parameters most users tune (``bgsub methods NAME`` shows these; ``--all`` every
     #: one); None = every parameter.
     common: Optional[Tuple[str, ...]] = None
+    #: Named sets of parameter values (``create_engine(name, preset="fast")``): preset name ->
+    #: ``{param: value}`` overrides of the defaults; empty for an engine without presets.
+    presets: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
 
     def is_common(self, name: str) -> bool:
         """Whether parameter ``name`` is one of the few most users tune."""
@@ -263,13 +276,28 @@ class EngineSpec:
     def unknown_param(self, key: str) -> str:
         """The one-line message for a parameter ``key`` this engine does not take, with the
         closest name when one is close."""
-        close = difflib.get_close_matches(key, list(self.params), n=1)
-        guess = f"; did you mean {close[0]!r}?" if close else ""
-        return (f"unknown parameter {key!r} for {self.name}{guess} "
+        return (f"unknown parameter {key!r} for {self.name}{did_you_mean(key, self.params)} "
                 f"(bgsub methods {self.name} --all lists them)")
 
-    def create(self, **params: Any) -> Engine:
-        """Build the engine; unknown or ill-typed parameters raise :class:`InputError`."""
+    def preset_values(self, preset: Optional[str]) -> Dict[str, Any]:
+        """The parameter values of ``preset`` (None: none, the defaults); :class:`InputError`,
+        one line naming the known presets, for a name this engine has no preset of."""
+        if preset is None:
+            return {}
+        if preset not in self.presets:
+            if not self.presets:
+                others = [spec.name for spec in available_engines() if spec.presets]
+                where = f" ({', '.join(others)} have)" if others else ""
+                raise InputError(f"method {self.name!r} has no presets{where}")
+            raise InputError(f"unknown preset {preset!r} for {self.name}"
+                             f"{did_you_mean(preset, self.presets)} (presets: "
+                             f"{', '.join(self.presets)})")
+        return dict(self.presets[preset])
+
+    def create(self, preset: Optional[str] = None, **params: Any) -> Engine:
+        """Build the engine with ``preset``'s values (:attr:`presets`), ``params`` over them;
+        unknown or ill-typed parameters and unknown presets raise :class:`InputError`."""
+        params = {**self.preset_values(preset), **params}
         unknown = sorted(set(params) - set(self.params))
         if unknown:
             raise InputError(self.unknown_param(unknown[0]))
@@ -297,11 +325,13 @@ _load_lock = threading.RLock()
 def register_engine(
     name: str, description: str, params: Optional[Dict[str, Param]] = None, *,
     common: Optional[Iterable[str]] = None,
+    presets: Optional[Mapping[str, Mapping[str, Any]]] = None,
 ) -> Callable[[Callable[..., Engine]], Callable[..., Engine]]:
     """Decorator: register ``factory(**params) -> Engine`` under ``name``. Every engine also
     takes :data:`ROI` (``roi``), which the registry applies (:attr:`Engine.roi`), not the
     factory. ``common`` names the parameters most users tune (default: all of them);
-    :class:`ValueError` for a name that is not a parameter."""
+    :class:`ValueError` for a name that is not a parameter. ``presets``: named sets of
+    parameter values (:attr:`EngineSpec.presets`), each checked here."""
 
     def decorate(factory: Callable[..., Engine]) -> Callable[..., Engine]:
         table = dict(params or {})
@@ -310,7 +340,14 @@ def register_engine(
         stray = sorted(set(chosen or ()) - set(table))
         if stray:
             raise ValueError(f"engine {name!r}: common names no parameter: {stray}")
-        _REGISTRY[name] = EngineSpec(name, description, factory, table, chosen)
+        named = {key: dict(values) for key, values in (presets or {}).items()}
+        for key, values in named.items():
+            for param, value in values.items():
+                if param not in table:
+                    raise ValueError(f"engine {name!r}: preset {key!r} sets no parameter "
+                                     f"{param!r}")
+                table[param].check(param, value)
+        _REGISTRY[name] = EngineSpec(name, description, factory, table, chosen, named)
         return factory
 
     return decorate
@@ -360,15 +397,17 @@ def get_engine_spec(name: str) -> EngineSpec:
         return _REGISTRY[name]
     except KeyError:
         names = [spec.name for spec in available_engines()]
-        close = difflib.get_close_matches(name, names, n=1)
-        guess = f"; did you mean {close[0]!r}?" if close else ""
-        raise InputError(f"unknown method {name!r}{guess} (available: {', '.join(names)})"
-                         ) from None
+        raise InputError(f"unknown method {name!r}{did_you_mean(name, names)} (available: "
+                         f"{', '.join(names)})") from None
 
 
-def create_engine(name: Optional[str] = None, **params: Any) -> Engine:
-    """Build the engine ``name`` (``None``: :func:`default_method`) with ``params``."""
-    return get_engine_spec(default_method() if name is None else name).create(**params)
+def create_engine(name: Optional[str] = None, preset: Optional[str] = None,
+                  **params: Any) -> Engine:
+    """Build the engine ``name`` (``None``: :func:`default_method`) with ``preset``'s values
+    (``"fast"``, ``"balanced"``, ``"accurate"``: ``bgsub methods NAME`` lists an engine's;
+    None: the defaults) and ``params`` over them."""
+    spec = get_engine_spec(default_method() if name is None else name)
+    return spec.create(preset, **params)
 
 
 def parse_params(name: str, pairs: Iterable[str]) -> Dict[str, Any]:

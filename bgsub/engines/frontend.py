@@ -21,7 +21,8 @@ and may provide
 
 Its settings are a frozen dataclass (``config_type``, fields declared with
 :func:`bgsub.settings.setting`), from which its engine's parameters are generated; it may replace
-defaults of the engine's stages (``stage_defaults``). :func:`bgsub.engines.moving.register_frontend`
+defaults of the engine's stages (``stage_defaults``) and name sets of parameter values
+(``presets``: ``fast``, ``balanced``, ``accurate``). :func:`bgsub.engines.moving.register_frontend`
 registers the engine that uses it::
 
     class MyFrontEnd(MotionFrontEnd):
@@ -39,6 +40,7 @@ registers the engine that uses it::
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from types import MappingProxyType
 from typing import Any, ClassVar, Dict, Mapping, Optional, Tuple
 
 import numpy as np
@@ -64,6 +66,13 @@ class MotionFrontEnd(ABC):
     #: one): the stages' few, to which a front end adds its own.
     common_params: ClassVar[Tuple[str, ...]] = ("work_width", "smooth", "threshold", "overlap",
                                                 "learning_rate")
+    #: The engine's named presets (``--preset``, ``create_engine(name, preset=...)``): preset
+    #: name -> the parameter values it sets over the defaults; ``balanced`` is the defaults.
+    presets: ClassVar[Mapping[str, Mapping[str, Any]]] = MappingProxyType({
+        "fast": {"work_width": 160, "edge_radius": 0},  # motion and mask at half size, no edges
+        "balanced": {},
+        "accurate": {"work_width": 480},  # more of the frame's detail
+    })
 
     def __init__(self, config: Any = None) -> None:
         if config is None and self.config_type is not None:

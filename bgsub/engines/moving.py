@@ -470,8 +470,8 @@ def draw_debug(frame: np.ndarray, mask: Optional[np.ndarray], res: MotionResult,
 def register_frontend(frontend_type: Type[MotionFrontEnd]) -> None:
     """Register the moving-camera engine built on ``frontend_type`` under its ``name``: its
     parameters are the front end's (:meth:`MotionFrontEnd.params`) and every stage setting
-    (with the front end's ``stage_defaults``), ``bgsub methods`` lists them and
-    ``create_engine(name, **params)`` builds it."""
+    (with the front end's ``stage_defaults``), its presets the front end's ``presets``,
+    ``bgsub methods`` lists them and ``create_engine(name, **params)`` builds it."""
     name, overrides = frontend_type.name, dict(frontend_type.stage_defaults)
     front = frontend_type.params()
     params = {**engine_params(front, overrides), "known_motion": Param("", KNOWN_MOTION_HELP)}
@@ -493,7 +493,7 @@ def register_frontend(frontend_type: Type[MotionFrontEnd]) -> None:
 
     factory.__module__ = frontend_type.__module__  # the engine is the front end's
     register_engine(name, frontend_type.description, params,
-                    common=frontend_type.common_params)(factory)
+                    common=frontend_type.common_params, presets=frontend_type.presets)(factory)
 
 
 def _register_builtins() -> None:

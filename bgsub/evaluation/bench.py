@@ -295,7 +295,7 @@ def make_clip(*, width: int, height: int, n_frames: int,
 # timing
 
 
-def _time_engine(method: str, params: Mapping[str, Any], frames: np.ndarray) -> float:
+def time_engine(method: str, params: Mapping[str, Any], frames: np.ndarray) -> float:
     """Seconds spent in ``apply`` over ``frames[1:]``, on a fresh engine warmed on ``frames[0]``."""
     engine = create_engine(method, **params)
     engine.apply(frames[0])  # untimed: first frames often only store state
@@ -311,7 +311,7 @@ def _run_method(method: str, params: Mapping[str, Any], frames: np.ndarray,
                 repeats: int) -> List[float]:
     """Frames per second of each of ``repeats`` runs, each on a fresh engine."""
     n = len(frames) - 1
-    return [n / max(_time_engine(method, params, frames), 1e-9) for _ in range(repeats)]
+    return [n / max(time_engine(method, params, frames), 1e-9) for _ in range(repeats)]
 
 
 def _peak_rss_mib() -> float:

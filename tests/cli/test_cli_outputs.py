@@ -14,7 +14,7 @@ from bgsub import create_engine
 from bgsub.cli import main
 from bgsub.io.pipeline import OutputRequest, process
 from bgsub.io.sources import open_source
-from helpers import write_box_clip, write_pan_clip
+from helpers import batch_results, write_box_clip, write_pan_clip
 
 W, H, N = 64, 48, 10
 _KINDS = ("--objects", "--motion", "--stats")
@@ -129,12 +129,6 @@ def test_a_stats_file_that_exists_is_refused_before_any_frame(tmp_path, bgsub_er
     assert not (tmp_path / "m").exists() and (tmp_path / "s.csv").read_text() == "mine\n"
 
 
-def _batch_results(capsys, argv) -> list:
-    """``(status, message)`` of each input of the batch ``argv`` (its ``--json`` summary)."""
-    assert main(argv + ["--json"]) == 0
-    return [(r["status"], r["message"]) for r in json.loads(capsys.readouterr().out)["results"]]
-
-
 def test_a_batch_rerun_with_another_object_size_is_a_skip_naming_it(tmp_path, capsys):
     clips = tmp_path / "clips"
     clips.mkdir()
@@ -142,11 +136,11 @@ def test_a_batch_rerun_with_another_object_size_is_a_skip_naming_it(tmp_path, ca
         write_box_clip(clips / f"v{k}.mkv", seed=k, n=3, width=W, height=H)
     argv = ["run", str(clips), "-o", str(tmp_path / "out"), "--method", "mog2", "--jobs", "1",
             "--objects", str(tmp_path / "objects")]
-    assert _batch_results(capsys, argv + ["--min-object-area", "5"]) == [("done", "")] * 2
-    assert _batch_results(capsys, argv + ["--min-object-area", "5"]) == [("skipped", "")] * 2
+    assert batch_results(capsys, argv + ["--min-object-area", "5"]) == [("done", "")] * 2
+    assert batch_results(capsys, argv + ["--min-object-area", "5"]) == [("skipped", "")] * 2
     reason = ("made with other settings (min_object_area 5 -> 9): --overwrite redoes it")
-    assert _batch_results(capsys, argv + ["--min-object-area", "9"]) == [("skipped", reason)] * 2
-    assert (_batch_results(capsys, argv + ["--min-object-area", "9", "--overwrite"])
+    assert batch_results(capsys, argv + ["--min-object-area", "9"]) == [("skipped", reason)] * 2
+    assert (batch_results(capsys, argv + ["--min-object-area", "9", "--overwrite"])
             == [("done", "")] * 2)
 
 

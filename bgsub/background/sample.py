@@ -29,7 +29,7 @@ class SampleBackground:
 
     def __init__(self, *, samples: int = 20, radius: float = 20.0, min_matches: int = 2,
                  subsample: int = 16, seed: int = 0, radius_min: Optional[float] = None,
-                 radius_gain: float = 3.0, adapt: float = 0.05) -> None:
+                 radius_gain: float = 0.0, adapt: float = 0.05) -> None:
         if not 1 <= min_matches <= samples:
             raise InputError(f"min_matches must be between 1 and samples ({samples}), "
                              f"not {min_matches}")
@@ -148,10 +148,11 @@ class SampleBackground:
 
     def _learn_spread(self, learn: Optional[np.ndarray]) -> None:
         """Fold the last score's distances into each background pixel's usual distance: a
-        running mean that becomes an average over the last ``1 / adapt`` frames."""
+        running mean that becomes an average over the last ``1 / adapt`` frames. A frame the
+        model did not score (the camera was moving) adds nothing, and no score counts twice."""
         if self._last is None or self.radius_min >= self.radius:
             return
-        d = self._last.astype(np.float32)
+        d, self._last = self._last.astype(np.float32), None
         self._seen += 1
         if self.spread is None:
             self.spread = d

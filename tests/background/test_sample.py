@@ -128,3 +128,13 @@ def test_a_faint_object_on_a_calm_pixel_is_found_with_a_radius_per_pixel():
         score = model.score(test)
         assert (np.mean(score[10:20, 5:15] > 1.0) > 0.9) == found
         assert np.mean(score[:, 25:] > 1.0) < 0.05
+
+
+def test_a_frame_the_model_did_not_score_adds_nothing_to_the_spread():
+    # The still-camera switch skips scoring while the camera moves, yet the model learns.
+    model = SampleBackground(radius=20, radius_min=5, radius_gain=5)
+    frames = _calm_and_rippling(6)
+    _learn(model, frames[:5])
+    spread = model.spread.copy()
+    model.update(frames[5])  # no score of this frame: its distances are not known
+    assert np.array_equal(model.spread, spread)

@@ -62,3 +62,38 @@ def _warp(img: np.ndarray, matrix: np.ndarray, size: tuple, flags: int,
         out = cv2.warpPerspective(img, m, size, flags=flags, borderMode=border, borderValue=0.0)
     # OpenCV returns (H, W) for an (H, W, 1) input: the channel axis is put back.
     return out[:, :, None] if img.ndim == 3 and out.ndim == 2 else out
+
+
+class FieldWarp:
+    """A (3, 3) homography ``matrix`` followed by a per-pixel displacement ``field`` ((H, W, 2)
+    float32, in the output's pixels): the background's motion in a 3-D scene (plane plus
+    parallax). The remap maps are made once; each call warps an image ((H, W) or (H, W, C)
+    float32 or uint8, of the field's size) with OpenCV's interpolation ``flags`` and ``border``
+    mode, as :func:`warp_image` does a matrix."""
+
+    def __init__(self, matrix: np.ndarray, field: np.ndarray) -> None:
+        h, w = field.shape[:2]
+        xs, ys = np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32))
+        # Where the plane put each pixel, then where the previous frame saw it.
+        on_plane = np.stack([xs - field[:, :, 0], ys - field[:, :, 1]], -1).reshape(1, -1, 2)
+        src = cv2.perspectiveTransform(on_plane, np.linalg.inv(np.asarray(matrix, np.float64)))
+        self.map_x = np.ascontiguousarray(src[0, :, 0].reshape(h, w))
+        self.map_y = np.ascontiguousarray(src[0, :, 1].reshape(h, w))
+
+    def __call__(self, img: np.ndarray, flags: int, border: int) -> np.ndarray:
+        return through_bgra(lambda each: self._remap(each, flags, border), img)
+
+    def _remap(self, img: np.ndarray, flags: int, border: int) -> np.ndarray:
+        out = cv2.remap(img, self.map_x, self.map_y, flags, borderMode=border, borderValue=0.0)
+        return out[:, :, None] if img.ndim == 3 and out.ndim == 2 else out
+
+
+def cell_index(positions: np.ndarray, shape: tuple, cell: int) -> tuple:
+    """``(cells, (gh, gw))``: the flat index of the ``cell`` x ``cell`` cell of an ``(H, W)``
+    frame that holds each of the ``(N, 2)`` ``positions`` (clipped to the frame's cells), and
+    the cell grid's size."""
+    h, w = int(shape[0]), int(shape[1])
+    gw, gh = (w + cell - 1) // cell, (h + cell - 1) // cell
+    gx = np.clip((positions[:, 0] // cell).astype(np.intp), 0, gw - 1)
+    gy = np.clip((positions[:, 1] // cell).astype(np.intp), 0, gh - 1)
+    return gy * gw + gx, (gh, gw)

@@ -69,6 +69,9 @@ CATEGORIES: Dict[str, str] = {
     "pan-zoom-rotate": "pan of 2-4 px/frame with a slow zoom (0.15-0.3 %/frame) and a small "
                        "rotation (0.1-0.25 deg/frame)",
     "fast-pan": "steady pan of 8-15 px/frame",
+    "parallax": "camera translating 1.5-3 px/frame past a near ground band (the bottom "
+                "quarter to third of the view) that moves 1.8-2.6 times as fast: rigid, not "
+                "planar, background",
 }
 
 #: Ground-truth labels (CDnet 2014).
@@ -235,6 +238,8 @@ def _camera_path(spec: SceneSpec) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
 
     if category == "pan":
         centre = k[:, None] * pan_velocity(2.0, 5.0)
+    elif category == "parallax":  # a camera on a track: horizontal (the band stays in view)
+        centre = k[:, None] * np.array([rng.uniform(1.5, 3.0) * rng.choice([-1.0, 1.0]), 0.0])
     elif category == "fast-pan":
         centre = k[:, None] * pan_velocity(8.0, 15.0)
     elif category == "jitter":
@@ -528,6 +533,7 @@ def render_frames(spec: SceneSpec, *, include_objects: bool = True) -> Iterator[
     poses, world_size = _camera_poses(spec)
     world = _background(_rng(spec, "background"), world_size)
     objects = _objects(spec, poses) if include_objects else []
+    near = _NearBand(spec, poses) if spec.category == "parallax" else None
     motion = camera_motion(poses)
     noise_rng = _rng(spec, "noise")
     size = (spec.width, spec.height)
@@ -535,12 +541,47 @@ def render_frames(spec: SceneSpec, *, include_objects: bool = True) -> Iterator[
         view = cv2.warpPerspective(world, poses[k], size,
                                    flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
                                    borderMode=cv2.BORDER_REFLECT)
+        if near is not None:
+            near.draw(view, k)
         gt = np.zeros((spec.height, spec.width), np.uint8)
         _draw_objects(view, gt, objects, poses[k], k, boundary_unknown=spec.boundary_unknown)
         noise = noise_rng.standard_normal(view.shape, dtype=np.float32)
         view += np.float32(spec.noise_sigma) * noise
         image = np.clip(np.rint(view), 0, 255).astype(np.uint8)
         yield SceneFrame(image, gt, motion[k].copy())
+
+
+class _NearBand:
+    """The ``parallax`` category's near layer: a textured ground band along the bottom of the
+    view, static in the world but nearer than the rest, so it moves ``speed`` times as fast
+    (a translating camera's parallax); its top edge is irregular, like rocks or bushes."""
+
+    def __init__(self, spec: SceneSpec, poses: np.ndarray) -> None:
+        rng = _rng(spec, "near band")
+        self.speed = rng.uniform(1.8, 2.6)
+        w, h = spec.width, spec.height
+        shift = poses[:, :2, 2] - poses[0, :2, 2]  # the camera's path (far-layer px)
+        self.offset = -self.speed * shift.min(axis=0) + 8
+        span = np.ceil(self.speed * (shift.max(axis=0) - shift.min(axis=0))).astype(int)
+        self.texture = _background(rng, (w + span[0] + 16, h + span[1] + 16)) * np.float32(0.7)
+        self.shift = shift
+        top = h * (1 - rng.uniform(0.25, 0.35))
+        bumps = 6 * np.sin(np.arange(self.texture.shape[1]) / rng.uniform(9, 20))
+        self.top = (top + bumps).astype(np.float32)  # per texture column
+
+    def draw(self, view: np.ndarray, k: int) -> None:
+        """Cover ``view`` ((H, W, 3) float32) with the band as frame ``k`` sees it, in place."""
+        h, w = view.shape[:2]
+        x0, y0 = self.speed * self.shift[k] + self.offset
+        move = np.array([[1, 0, x0], [0, 1, y0]], np.float32)
+        band = cv2.warpAffine(self.texture, move, (w, h),
+                              flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP)
+        cols = np.clip(np.arange(w) + x0, 0, len(self.top) - 1)
+        top = np.interp(cols, np.arange(len(self.top)), self.top) - y0 + self.offset[1]
+        rows = np.arange(h, dtype=np.float32)[:, None]
+        alpha = np.clip(rows - top[None, :] + 0.5, 0, 1).astype(np.float32)[..., None]
+        view *= 1 - alpha
+        view += alpha * band
 
 
 def bundled_sample() -> Path:

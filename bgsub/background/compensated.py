@@ -28,7 +28,7 @@ import cv2
 import numpy as np
 
 from bgsub.background.clamp import at_least, at_most
-from bgsub._util import fast_median, through_bgra, warp_image  # noqa: F401  (re-exported)
+from bgsub._util import FieldWarp, fast_median, through_bgra, warp_image  # noqa: F401  (re-exported)
 from bgsub.errors import InputError, describe_shape
 from bgsub.motion.global_motion import is_identity
 from bgsub.settings import check_settings, setting
@@ -135,7 +135,8 @@ class CompensatedBackground:
         self.reset(frame)
         self.update(frame)
 
-    def warp(self, matrix: np.ndarray, *, sharp: bool = False) -> None:
+    def warp(self, matrix: np.ndarray, *, sharp: bool = False,
+             parallax: Optional[FieldWarp] = None) -> None:
         """Move the model into the current frame's coordinates.
 
         Parameters
@@ -156,16 +157,17 @@ class CompensatedBackground:
         h, w = self.age.shape
         flags = cv2.INTER_LANCZOS4 if sharp else cv2.INTER_LINEAR
         self._diff = None
-        self.mean = warp_image(self.mean, matrix, (w, h), flags, cv2.BORDER_REPLICATE)
-        self.var = warp_image(self.var, matrix, (w, h), flags, cv2.BORDER_REPLICATE)
+        move = parallax or (lambda img, how, border: warp_image(img, matrix, (w, h), how, border))
+        self.mean = move(self.mean, flags, cv2.BORDER_REPLICATE)
+        self.var = move(self.var, flags, cv2.BORDER_REPLICATE)
         if sharp:
             # Lanczos rings: keep the values in the range they can take.
             np.clip(self.mean, 0.0, 255.0, out=self.mean)
             at_least(self.var, self.config.min_std ** 2)
         # Age with a zero border: uncovered pixels have no history. Linear interpolation lets
         # a pixel half-inside inherit a lower age, which is the cautious side.
-        self.age = warp_image(self.age, matrix, (w, h), cv2.INTER_LINEAR, cv2.BORDER_CONSTANT)
-        self.seen = warp_image(self.seen, matrix, (w, h), cv2.INTER_LINEAR, cv2.BORDER_CONSTANT)
+        self.age = move(self.age, cv2.INTER_LINEAR, cv2.BORDER_CONSTANT)
+        self.seen = move(self.seen, cv2.INTER_LINEAR, cv2.BORDER_CONSTANT)
 
     def forget_partly_seen(self, matrix: np.ndarray) -> None:
         """After a frozen model's :meth:`warp` by ``matrix`` (3, 3): pixels that the previous

@@ -26,7 +26,7 @@ from typing import Optional
 import cv2
 import numpy as np
 
-from bgsub._util import through_bgra, warp_image
+from bgsub._util import FieldWarp, cell_index, through_bgra, warp_image
 from bgsub.errors import InputError
 from bgsub.motion.global_motion import apply_homography
 
@@ -71,17 +71,6 @@ def residual_field(points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
         num = np.bincount(cells, wt[ok] * res[ok, axis], minlength=gh * gw)
         grid[:, axis] = np.where(den > 0, num / np.maximum(den, 1e-12), 0.0)
     return cells_to_pixels(grid.reshape(gh, gw, 2), shape, cell)
-
-
-def cell_index(positions: np.ndarray, shape: tuple, cell: int) -> tuple:
-    """``(cells, (gh, gw))``: the flat index of the ``cell`` x ``cell`` cell of an ``(H, W)``
-    frame that holds each of the ``(N, 2)`` ``positions`` (clipped to the frame's cells), and
-    the cell grid's size."""
-    h, w = int(shape[0]), int(shape[1])
-    gw, gh = (w + cell - 1) // cell, (h + cell - 1) // cell
-    gx = np.clip((positions[:, 0] // cell).astype(np.intp), 0, gw - 1)
-    gy = np.clip((positions[:, 1] // cell).astype(np.intp), 0, gh - 1)
-    return gy * gw + gx, (gh, gw)
 
 
 def cells_to_pixels(grid: np.ndarray, shape: tuple, cell: int) -> np.ndarray:
@@ -141,14 +130,19 @@ def camera_evidence_map(prev: np.ndarray, cur: np.ndarray, matrix: np.ndarray, *
 
 def frame_evidence(prev: np.ndarray, cur: np.ndarray, matrix: np.ndarray, *,
                    residual: Optional[np.ndarray] = None, window: int = 7, noise: float = 4.0,
-                   start: float = 0.1, span: float = 0.4) -> tuple:
+                   start: float = 0.1, span: float = 0.4,
+                   parallax: Optional[FieldWarp] = None) -> tuple:
     """``(against, along)``, both (H, W) float32 in [0, 1]: :func:`motion_evidence_map` and
     :func:`camera_evidence_map` of the same frames (see there for the parameters), from one
-    warp of ``prev``."""
+    warp of ``prev`` (by ``matrix``, or by ``parallax``, the homography and the background's
+    parallax, :class:`~bgsub._util.FieldWarp`)."""
     _check_frames(prev, cur)
     h, w = cur.shape[:2]
     k = (int(window), int(window))
-    moved = warp_image(prev, matrix, (w, h), cv2.INTER_LINEAR, cv2.BORDER_REPLICATE)
+    if parallax is not None:  # the camera's motion in a 3-D scene: plane plus parallax
+        moved = parallax(prev, cv2.INTER_LINEAR, cv2.BORDER_REPLICATE)
+    else:
+        moved = warp_image(prev, matrix, (w, h), cv2.INTER_LINEAR, cv2.BORDER_REPLICATE)
     r_cam = _mean_absdiff(cur, moved, k)
     r_still = _mean_absdiff(cur, prev, k)
     along = _ramp(r_still - r_cam, r_cam + r_still + np.float32(noise), start, span)

@@ -21,6 +21,7 @@ from typing import Any, Callable, Optional
 
 import numpy as np
 
+from bgsub._util import FieldWarp
 from bgsub.background.compensated import CompensatedBackground
 from bgsub.background.fusion import Fusion
 from bgsub.background.object_colour import ObjectColours
@@ -125,7 +126,7 @@ class Foreground:
 
     def compare(self, work: np.ndarray, prev: np.ndarray, result: MotionResult,
                 matrix: np.ndarray, applied: np.ndarray, *, frozen: bool,
-                fixed: bool) -> Comparison:
+                fixed: bool, parallax: Optional[FieldWarp] = None) -> Comparison:
         """The :class:`Comparison` of ``work`` (the frame, (h, w[, 3]) uint8; ``prev`` the
         previous one) with the model warped by ``applied`` (3, 3; a ``frozen`` model is warped
         sharp and forgets what the previous frame saw only in part); the motion evidence of
@@ -136,11 +137,13 @@ class Foreground:
 
         def evidence() -> None:
             image.append(self.fusion.image_evidence(result.points, result.disp, result.weights,
-                                                    matrix, prev, work))
+                                                    matrix, prev, work, parallax))
 
         # The frames' evidence is the longer job: the vectors' map is made in this thread.
         with self.alongside(evidence):
-            self.bg.warp(applied, sharp=frozen)
+            # (A held-back motion is applied later, with the plane's motion alone.)
+            self.bg.warp(applied, sharp=frozen,
+                         parallax=parallax if np.array_equal(applied, matrix) else None)
             if frozen:
                 self.bg.forget_partly_seen(applied)
             exposed, gain = self.exposure(work, self.bg)

@@ -25,6 +25,7 @@ from typing import Optional
 import cv2
 import numpy as np
 
+from bgsub._util import FieldWarp
 from bgsub.background.clamp import at_least
 from bgsub.background.edge_holes import fill_edge_holes
 from bgsub.background.evidence import (cell_index, cells_to_pixels, frame_evidence,
@@ -140,8 +141,8 @@ class Fusion:
                                   threshold=c.violation_threshold, noise_scale=noise)
 
     def image_evidence(self, points: np.ndarray, disp: np.ndarray, fit_weights: np.ndarray,
-                       matrix: np.ndarray, prev: np.ndarray,
-                       cur: np.ndarray) -> Optional[tuple]:
+                       matrix: np.ndarray, prev: np.ndarray, cur: np.ndarray,
+                       parallax: Optional[FieldWarp] = None) -> Optional[tuple]:
         """``(against, along)``, (h, w) float32 each: the frames' own evidence of motion against
         the camera (:func:`~bgsub.background.evidence.motion_evidence_map` of ``prev`` and
         ``cur``, (h, w) or (h, w, 3) uint8, the local vectors weighted by ``fit_weights`` as one
@@ -154,7 +155,7 @@ class Fusion:
         # Near 0 where the frames hold no evidence (flat areas, edges moving along
         # themselves, a still camera's background): it never lowers the vectors' opinion.
         local = residual_field(points, disp, fit_weights, matrix, cur.shape[:2])
-        against, along = frame_evidence(prev, cur, matrix, residual=local)
+        against, along = frame_evidence(prev, cur, matrix, residual=local, parallax=parallax)
         against *= np.float32(c.image_cue)
         return against, along
 

@@ -20,6 +20,7 @@ from bgsub.background.foreground import ForegroundConfig
 from bgsub.background.fusion import FusionConfig
 from bgsub.background.overlay import OverlayConfig
 from bgsub.camera.config import CameraConfig
+from bgsub.camera.parallax import ParallaxConfig
 from bgsub.engines.base import LEARNING_RATE, Param
 from bgsub.errors import InputError
 from bgsub.settings import check_settings, config_params, setting
@@ -77,8 +78,8 @@ class EngineConfig:
 
 
 #: The engine's stage settings, in the order of its parameter table.
-STAGES = (EngineConfig, CameraConfig, BackgroundConfig, ForegroundConfig, FusionConfig,
-          OverlayConfig)
+STAGES = (EngineConfig, CameraConfig, ParallaxConfig, BackgroundConfig, ForegroundConfig,
+          FusionConfig, OverlayConfig)
 
 
 def engine_params(front_params: Mapping[str, Param],

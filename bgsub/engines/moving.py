@@ -34,6 +34,7 @@ from typing import Any, Dict, Optional, Type
 import cv2
 import numpy as np
 
+from bgsub._util import FieldWarp
 from bgsub.background.compensated import BackgroundConfig, CompensatedBackground
 from bgsub.background.exposure import match_exposure, same_exposure
 from bgsub.background.foreground import Foreground, ForegroundConfig
@@ -44,6 +45,7 @@ from bgsub.background.overlay import OverlayConfig, OverlayDetector
 from bgsub.background.persistence import BlobPersistence
 from bgsub.background.scene_cut import SceneCut
 from bgsub.background.still_switch import NoStillSwitch, StillCameraSwitch
+from bgsub.camera.parallax import ParallaxConfig, ParallaxField, without_parallax
 from bgsub.camera import KNOWN_MOTION_HELP, CameraConfig, CameraStage, KnownMotion, work_scale
 from bgsub.engines.base import (Engine, Param, check_fgmask, check_frame, check_learning_rate,
                                 opencv_keywords, register_engine)
@@ -174,6 +176,7 @@ class MovingCameraEngine(Engine):
                  foreground: Optional[ForegroundConfig] = None,
                  fusion: Optional[FusionConfig] = None,
                  overlay: Optional[OverlayConfig] = None,
+                 parallax: Optional[ParallaxConfig] = None,
                  known_motion: Optional[KnownMotion] = None) -> None:
         defaults = stage_configs({}, frontend.stage_defaults)
         self.frontend = frontend
@@ -198,6 +201,7 @@ class MovingCameraEngine(Engine):
                                          above=self.fusion.config.grow_above),
             alongside=self.thread.alongside)
         self.overlays = OverlayDetector(overlay or defaults[OverlayConfig])
+        self.parallax = ParallaxField(parallax or defaults[ParallaxConfig])
         self._frame_less = FrameLess()
         self.last_status = "ok"
         self.previous = Previous()
@@ -252,8 +256,12 @@ class MovingCameraEngine(Engine):
         cur = self.frontend.frame_data(gray)
         seen = self.camera.decide(self._motion(cur, gray), gray, self.bg, frozen=frozen)
         prev.result = seen.result
+        seen, parallax = self._parallax(seen, gray.shape)
         compared = self.foreground.compare(work, prev.work, seen.result, seen.matrix,
-                                           seen.applied, frozen=frozen, fixed=seen.refused)
+                                           seen.applied, frozen=frozen, fixed=seen.refused,
+                                           parallax=parallax)
+        if parallax is not None:
+            self.parallax.discount_edges(compared.score, compared.violation)
         young = self._region.unwatched(self.foreground.young())
         if self.foreground.is_cut(compared, seen.result, young):
             self._restart(work, gray, cur)
@@ -266,6 +274,20 @@ class MovingCameraEngine(Engine):
         prev.data, prev.gray, prev.work = cur, gray, work
         self.last_status = seen.status
         return mask
+
+    def _parallax(self, seen: Any, shape: tuple) -> tuple:
+        """``(seen, warp)``: the camera stage's decision ``seen`` with the background's parallax
+        taken off its vectors, and the homography-plus-parallax warp
+        (:class:`~bgsub._util.FieldWarp`), or ``(seen, None)`` where no parallax stands out
+        (:class:`~bgsub.camera.parallax.ParallaxField`) or the camera is taken as still."""
+        if seen.refused or self.camera_still:
+            return seen, None
+        r = seen.result
+        field = self.parallax.estimate(r.points, r.disp, r.weights, seen.matrix, shape,
+                                       foreground=self.previous.mask)
+        if field is None:
+            return seen, None
+        return seen._replace(result=without_parallax(r, field)), FieldWarp(seen.matrix, field)
 
     @property
     def _region(self) -> Any:
@@ -303,6 +325,7 @@ class MovingCameraEngine(Engine):
         what the front end keeps of it): the first frame, a new shot."""
         for stage in (self.foreground, self.camera):
             stage.restart(work)
+        self.parallax.restart()
         self.previous.data, self.previous.gray, self.previous.work = data, gray, work
 
     # ------------------------------------------------------------------ what the engine saw
@@ -489,7 +512,7 @@ def register_frontend(frontend_type: Type[MotionFrontEnd]) -> None:
                                   background=stages[BackgroundConfig],
                                   foreground=stages[ForegroundConfig],
                                   fusion=stages[FusionConfig], overlay=stages[OverlayConfig],
-                                  known_motion=given)
+                                  parallax=stages[ParallaxConfig], known_motion=given)
 
     factory.__module__ = frontend_type.__module__  # the engine is the front end's
     register_engine(name, frontend_type.description, params,

@@ -122,6 +122,32 @@ def test_an_object_the_camera_follows_is_found(name):
     assert with_cue > without + 0.1, (with_cue, without)
 
 
+def _followed_over_sky(n=30, pan=6.0, h=180, w=240):
+    """The camera follows a small textured object across a flat sky (a gradient with faint
+    clouds): only a strip of ground along the bottom shows the pan."""
+    rng = np.random.default_rng(0)
+    world = np.empty((h + 80, w + 8 * n, 3), np.float32)
+    world[:] = np.linspace(200, 150, h + 80)[:, None, None] * np.array([1.0, 0.9, 0.8])
+    clouds = cv2.GaussianBlur(rng.normal(0, 1, world.shape[:2]).astype(np.float32), (0, 0), 12)
+    world += 60 * clouds[..., None]
+    world[h + 10:] = rng.integers(0, 255, (70, world.shape[1], 3))
+    world = np.clip(world, 0, 255).astype(np.uint8)
+    thing = cv2.resize(rng.integers(0, 255, (8, 10, 3)).astype(np.uint8), (40, 30),
+                       interpolation=cv2.INTER_NEAREST)
+    for k in range(n):
+        m = np.float32([[1, 0, -20 - pan * k], [0, 1, -40]])
+        frame = cv2.warpAffine(world, m, (w, h), flags=cv2.INTER_LINEAR)
+        frame[60:90, 100:140] = thing
+        gt = np.zeros((h, w), np.uint8)
+        gt[60:90, 100:140] = 255
+        yield frame, gt
+
+
+def test_an_object_the_camera_follows_over_a_flat_sky_is_found():
+    f, _ = _scored(_engine_with("grbm"), _followed_over_sky(), skip=5)
+    assert f > 0.8, f
+
+
 def _ghost_clip(n=16, pan=2.0, h=180, w=240, band=True):
     """A pan over a scene with a flat band (ice, a wall: no motion to read there; ``band``) and
     a textured square there from the first frame, moving 5 px per frame along the band: the

@@ -14,6 +14,7 @@ Usage::
 
     OMP_NUM_THREADS=1 python benchmarks/profile_stages.py                      # 320x240
     OMP_NUM_THREADS=1 python benchmarks/profile_stages.py --size 640x480 --overlap 1
+    OMP_NUM_THREADS=1 python benchmarks/profile_stages.py --preset fast -p stride=8
 """
 
 from __future__ import annotations
@@ -204,10 +205,14 @@ def main() -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--input", help="profile on this video's frames (at their own size) "
                                     "instead of the generated clip")
+    ap.add_argument("--preset", help="named settings (fast, balanced, accurate)")
+    ap.add_argument("-p", "--param", action="append", default=[], metavar="KEY=VALUE",
+                    help="engine parameter over the preset (repeatable)")
     args = ap.parse_args()
     width, height = (int(v) for v in args.size.lower().split("x"))
 
     from bgsub import create_engine
+    from bgsub.engines.base import parse_params
     from bgsub.evaluation.bench import make_clip
 
     if args.input:
@@ -217,7 +222,8 @@ def main() -> int:
     else:
         clip, description = make_clip(width=width, height=height, n_frames=args.frames + 1,
                                       seed=args.seed)
-    engine = create_engine("grbm", overlap=args.overlap)
+    params = parse_params("grbm", args.param)
+    engine = create_engine("grbm", preset=args.preset, overlap=args.overlap, **params)
     timers = Timers()
     instrument(timers, engine.frontend.model)
     engine.apply(clip[0])
@@ -236,8 +242,10 @@ def main() -> int:
 def report(timers: Timers, *, n: int, wall: float, cpu: float, description: str, args) -> None:
     ms = {stage: 1e3 * s / n for stage, s in timers.total.items()}
     summed = sum(ms.values())
+    settings = "".join([f"; --preset {args.preset}" if args.preset else "",
+                        *(f" -p {pair}" for pair in args.param)])
     print(f"grbm, {args.size}, overlap={args.overlap}, {n} frames of {description}; "
-          f"load {os.getloadavg()[0]:.2f}")
+          f"load {os.getloadavg()[0]:.2f}{settings}")
     second = {stage: 1e3 * s / n for stage, s in timers.second.items()}
     print("\n| stage | ms/frame | share | of which second thread |\n|---|---:|---:|---:|")
     for stage in sorted(ms, key=lambda s: (s.split(":")[0], -ms[s])):

@@ -90,15 +90,19 @@ def test_methods_lists_each_preset_with_its_values(capsys):
     lines = capsys.readouterr().out.splitlines()
     start = lines.index("  presets (--preset NAME; -p overrides their values):")
     assert [line.split() for line in lines[start + 1:start + 4]] == [
-        ["fast", "work_width=160,", "edge_radius=0"], ["balanced", "the", "defaults"],
+        ["fast", "work_width=160,", "stride=16,", "overlay=0,", "edge_radius=4,",
+         "ransac_threshold=0.5,", "violation_threshold=0.375"],
+        ["balanced", "the", "defaults"],
         ["accurate", "work_width=480"]]
 
 
 def test_methods_json_holds_the_presets(capsys):
     assert main(["methods", "grbm", "--json"]) == 0
     entry = json.loads(capsys.readouterr().out)[0]
-    assert entry["presets"] == {"fast": {"work_width": 160, "edge_radius": 0}, "balanced": {},
-                                "accurate": {"work_width": 480}}
+    assert entry["presets"] == {"fast": {"work_width": 160, "stride": 16, "overlay": 0,
+                                         "edge_radius": 4, "ransac_threshold": 0.5,
+                                         "violation_threshold": 0.375},
+                                "balanced": {}, "accurate": {"work_width": 480}}
 
 
 def test_methods_shows_no_presets_for_an_engine_without_them(capsys):

@@ -7,16 +7,28 @@ import pytest
 
 from bgsub.engines import create_engine, get_engine_spec, register_engine
 from bgsub.engines.frontend import MotionFrontEnd
+from bgsub.engines.frontends.grbm import GrbmFrontEnd
+from bgsub.engines.frontends.lucas_kanade import LucasKanadeFrontEnd
 from bgsub.errors import InputError
 
 MOVING = ("grbm", "compensated")
+FRONT_ENDS = {"grbm": GrbmFrontEnd, "compensated": LucasKanadeFrontEnd}
 
 
 @pytest.mark.parametrize("method", MOVING)
 def test_each_moving_engine_has_the_three_presets_of_its_front_end(method):
     presets = get_engine_spec(method).presets
     assert list(presets) == ["fast", "balanced", "accurate"]
-    assert presets == MotionFrontEnd.presets
+    assert presets == FRONT_ENDS[method].presets
+
+
+def test_the_gated_rbm_has_a_fast_preset_of_its_own_and_the_base_others():
+    assert GrbmFrontEnd.presets["fast"] == {"work_width": 160, "stride": 16, "overlay": 0,
+                                            "edge_radius": 4, "ransac_threshold": 0.5,
+                                            "violation_threshold": 0.375}
+    assert LucasKanadeFrontEnd.presets == MotionFrontEnd.presets
+    for name in ("balanced", "accurate"):
+        assert GrbmFrontEnd.presets[name] == MotionFrontEnd.presets[name]
 
 
 @pytest.mark.parametrize("method", MOVING)
@@ -25,17 +37,27 @@ def test_balanced_is_the_defaults(method):
     assert create_engine(method, preset="balanced").config == create_engine(method).config
 
 
-@pytest.mark.parametrize("method", MOVING)
-@pytest.mark.parametrize("preset, width, radius", [("fast", 160, 0), ("accurate", 480, 8)])
+@pytest.mark.parametrize("method, preset, width, radius", [
+    ("grbm", "fast", 160, 4), ("compensated", "fast", 160, 0),
+    ("grbm", "accurate", 480, 8), ("compensated", "accurate", 480, 8)])
 def test_a_preset_builds_the_engine_with_its_values(method, preset, width, radius):
     engine = create_engine(method, preset=preset)
     assert (engine.config.work_width, engine.config.edge_radius) == (width, radius)
 
 
+def test_the_gated_rbm_fast_preset_reaches_its_stages():
+    engine = create_engine("grbm", preset="fast")
+    assert engine.frontend.flow.stride == 16
+    assert engine.overlays.config.overlay == 0
+    assert engine.camera.config.ransac_threshold == 0.5
+    assert engine.fusion.config.violation_threshold == 0.375
+
+
 def test_an_explicit_parameter_wins_over_the_preset():
     engine = create_engine("grbm", preset="fast", work_width=200)
     assert engine.config.work_width == 200
-    assert engine.config.edge_radius == 0  # the preset's other value stays
+    assert engine.config.edge_radius == 4  # the preset's other values stay
+    assert engine.frontend.flow.stride == 16
 
 
 def test_an_unknown_preset_is_one_line_naming_the_presets():

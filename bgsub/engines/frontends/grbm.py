@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from types import MappingProxyType
 from typing import Any, Dict, NamedTuple, Optional
 
 import numpy as np
@@ -135,6 +136,16 @@ class GrbmFrontEnd(MotionFrontEnd):
                    "motion + compensated background model (the paper's method)")
     config_type = GrbmConfig
     common_params = ("model", "stride", "max_motion", *MotionFrontEnd.common_params)
+    #: The base presets, with a ``fast`` of the gated RBM's own (issue 47): at half the working
+    #: size, a patch grid of half the density in each direction (stride 16), no search for
+    #: frame-fixed overlays, and the distances in working pixels halved with it (the RANSAC
+    #: and violation thresholds, the edge windows' radius). ~1.3x the frames per second of
+    #: ``work_width=160, edge_radius=0`` alone at 320x240, with a higher development F.
+    presets = MappingProxyType({
+        **MotionFrontEnd.presets,
+        "fast": {"work_width": 160, "stride": 16, "overlay": 0, "edge_radius": 4,
+                 "ransac_threshold": 0.5, "violation_threshold": 0.375},
+    })
 
     def __init__(self, config: Optional[GrbmConfig] = None, *,
                  flow: Optional[FlowConfig] = None) -> None:

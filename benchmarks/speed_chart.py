@@ -3,15 +3,15 @@
 
 x: frames per second as a multiple of MOG2's, timed in the same run (log scale), from
 ``bgsub bench --presets --json`` (each preset alternating with MOG2) and ``bgsub bench --json``
-(the other methods; MOG2 must be among them). y: development F (mean of the families) from
-``benchmarks/accuracy.py --json`` files of one set (``--set real`` by default). Re-run it with
-new files to redraw the chart::
+(the other methods; MOG2 must be among them); several runs give the median ratio. y: development
+F (mean of the families) from ``benchmarks/accuracy.py --json`` files of one set (``--set real``
+by default). Re-run it with new files to redraw the chart::
 
     OMP_NUM_THREADS=1 bgsub bench --presets --size 640x480 --json > presets.json
     OMP_NUM_THREADS=1 bgsub bench -m mog2,knn,compensated --size 640x480 --json > methods.json
-    OMP_NUM_THREADS=1 python benchmarks/accuracy.py --set real --preset fast --json fast.json
+    OMP_NUM_THREADS=1 python benchmarks/accuracy.py --set real --preset fast --json real_fast.json
     ...                                      # balanced, accurate; -m mog2, knn, compensated
-    python benchmarks/speed_chart.py --timing presets.json methods.json --accuracy *.json
+    python benchmarks/speed_chart.py --timing presets.json methods.json --accuracy real_*.json
 
 A file of ``accuracy.py`` names its point by its ``--method`` and ``--preset``; ``KEY=FILE``
 names it instead (``grbm:fast=real_fast.json`` for a file made with the preset's ``-p`` values).
@@ -23,6 +23,7 @@ import argparse
 import json
 import math
 import re
+import statistics
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,7 +41,8 @@ WIDTH, HEIGHT = 960, 600
 LEFT, RIGHT, TOP, BOTTOM = 90, 40, 60, 110
 #: BGR colours: the presets' engine in blues, every other method its own colour.
 PRESET_COLOURS = {"fast": (235, 170, 90), "balanced": (200, 110, 20), "accurate": (120, 50, 10)}
-OTHER_COLOURS = [(40, 120, 240), (60, 170, 60), (170, 70, 170), (40, 40, 200), (120, 120, 120)]
+METHOD_COLOURS = {"mog2": (170, 70, 170), "knn": (40, 120, 240), "compensated": (60, 170, 60)}
+OTHER_COLOURS = [(40, 40, 200), (120, 120, 120), (20, 160, 200)]
 INK, GRID, WHITE = (30, 30, 30), (225, 225, 225), (255, 255, 255)
 FONT = cv2.FONT_HERSHEY_SIMPLEX
 
@@ -83,24 +85,30 @@ def _load(path: Path) -> dict:
         raise ChartError(f"{path}: cannot read it as JSON ({err})") from None
 
 
+def _clip(report: dict) -> dict:
+    """The part of a bench report that holds the frame size and the machine."""
+    return report["clip"] if isinstance(report.get("clip"), dict) else report
+
+
 def read_timing(paths: Iterable[Path]) -> Tuple[Dict[tuple, float], str, List[dict]]:
     """``({key: fps / MOG2's fps}, the presets' engine, [the files' JSON])`` from files of
-    ``bgsub bench --presets --json`` and ``bgsub bench --json``; the first file that times a
-    point gives its ratio."""
+    ``bgsub bench --presets --json`` and ``bgsub bench --json``; a point timed in several files
+    (repeated runs on a busy host) gets the median of its ratios."""
     reports = [(path, _load(path)) for path in paths]
     sizes = {(_clip(r).get("width"), _clip(r).get("height")) for _, r in reports}
     if len(sizes) > 1:
         raise ChartError(f"the timing files are of different frame sizes: {sorted(sizes)}")
     preset_method = next((r["method"] for _, r in reports if "method" in r), "grbm")
-    ratios: Dict[tuple, float] = {}
+    ratios: Dict[tuple, List[float]] = {}
     for path, report in reports:
         try:
             found = _ratios(report, preset_method)
         except (KeyError, TypeError, ValueError, ZeroDivisionError) as err:
             raise ChartError(f"{path}: not a `bgsub bench --json` file ({err!r})") from None
         for key, ratio in found.items():
-            ratios.setdefault(key, ratio)
-    return ratios, preset_method, [r for _, r in reports]
+            ratios.setdefault(key, []).append(ratio)
+    medians = {key: float(statistics.median(runs)) for key, runs in ratios.items()}
+    return medians, preset_method, [r for _, r in reports]
 
 
 def _ratios(report: dict, preset_method: str) -> Dict[tuple, float]:
@@ -133,6 +141,9 @@ def read_accuracy(specs: Iterable[str], which: str, preset_method: str
             method, preset = args["method"], args.get("preset")
             if name:
                 method, _, preset = name.partition(":")
+            elif args.get("param"):
+                print(f"speed_chart: {file} was run with -p {' -p '.join(args['param'])}; "
+                      f"it is drawn as {method} {preset or ''}".rstrip(), file=sys.stderr)
             if args["set"] != which or args.get("half", "all") != "all":
                 raise ChartError(f"{file}: set {args['set']}, half {args.get('half')}; the chart "
                                  f"shows --set {which} --half all")
@@ -155,17 +166,16 @@ def join_points(ratios: Dict[tuple, float], scores: Dict[tuple, float]) -> List[
     return sorted(points, key=lambda p: p.ratio)
 
 
-def _clip(report: dict) -> dict:
-    """The part of a bench report that holds the frame size and the machine."""
-    return report["clip"] if isinstance(report.get("clip"), dict) else report
-
-
 def describe(reports: Sequence[dict], which: str) -> str:
     """The chart's footnote: frame size, machine and UTC dates of the timing."""
+    machines = [_clip(r)["machine"] for r in reports]
+    dates = sorted(m["date"][:16].replace("T", " ") for m in machines)
+    when = dates[0] if dates[0] == dates[-1] else f"{dates[0]} to {dates[-1][-5:]}"
+    loads = sorted(m["load_average"] for m in machines if m.get("load_average") is not None)
+    load = f", load {loads[0]:.1f}-{loads[-1]:.1f}" if loads else ""
     clip = _clip(reports[0])
-    dates = sorted({_clip(r)["machine"]["date"][:16].replace("T", " ") for r in reports})
     return (f"timing: bgsub bench, {clip['width']}x{clip['height']}, per-frame step, "
-            f"{clip['machine']['cpu']}, {', '.join(dates)} UTC; "
+            f"{machines[0]['cpu']}, {when} UTC{load}; "
             f"F: benchmarks/accuracy.py --set {which}")
 
 
@@ -220,10 +230,18 @@ def draw_axes(img: np.ndarray, xr: Tuple[float, float], x_title: str, y_title: s
 
 
 def colours(points: Sequence[Point], preset_method: str) -> Dict[tuple, Tuple[int, int, int]]:
-    """A colour per point: the presets' own shades, then the other methods' in turn."""
+    """A colour per point: the presets their shades, MOG2, KNN and ``compensated`` theirs, any
+    other method the next of :data:`OTHER_COLOURS`."""
     others = iter(OTHER_COLOURS * (1 + len(points) // len(OTHER_COLOURS)))
-    return {p.key: PRESET_COLOURS.get(p.key[1], (200, 110, 20)) if p.key[0] == preset_method
-            else next(others) for p in points}
+
+    def colour(method: str, preset: Optional[str]) -> Tuple[int, int, int]:
+        if method == preset_method:
+            return PRESET_COLOURS.get(preset, PRESET_COLOURS[DEFAULT_PRESET])
+        if preset is None and method in METHOD_COLOURS:
+            return METHOD_COLOURS[method]
+        return next(others)
+
+    return {p.key: colour(*p.key) for p in points}
 
 
 def _free_spot(box: Tuple[int, int, int, int], taken: List[Tuple[int, int, int, int]]
@@ -263,6 +281,16 @@ def draw_points(img: np.ndarray, points: Sequence[Point], xr: Tuple[float, float
         _text(img, text, (bx, by + bh - 3), 0.45, colour[p.key])
 
 
+def _draw_footnote(img: np.ndarray, footnote: str, scale: float = 0.42) -> None:
+    """``footnote`` under the x axis, on two lines when one is wider than the canvas."""
+    lines = [footnote]
+    if cv2.getTextSize(footnote, FONT, scale, 1)[0][0] > WIDTH - LEFT - 10:
+        head, _, tail = footnote.partition("; ")
+        lines = [head + ";", tail]
+    for k, line in enumerate(lines):
+        _text(img, line, (LEFT, HEIGHT - 40 + 18 * k), scale)
+
+
 def draw_chart(points: Sequence[Point], preset_method: str, footnote: str,
                which: str = "real") -> np.ndarray:
     """The whole chart as a BGR image of ``HEIGHT`` x ``WIDTH``."""
@@ -273,7 +301,7 @@ def draw_chart(points: Sequence[Point], preset_method: str, footnote: str,
     draw_points(img, points, xr, preset_method)
     title = f"Speed and accuracy: the presets of {preset_method} beside other methods"
     _text(img, title, (LEFT, 35), 0.65, INK, 2)
-    _text(img, footnote, (LEFT, HEIGHT - 25), 0.42)
+    _draw_footnote(img, footnote)
     return img
 
 

@@ -172,7 +172,8 @@ def describe(reports: Sequence[dict], which: str) -> str:
     dates = sorted(m["date"][:16].replace("T", " ") for m in machines)
     when = dates[0] if dates[0] == dates[-1] else f"{dates[0]} to {dates[-1][-5:]}"
     loads = sorted(m["load_average"] for m in machines if m.get("load_average") is not None)
-    load = f", load {loads[0]:.1f}-{loads[-1]:.1f}" if loads else ""
+    low, high = (f"{loads[0]:.1f}", f"{loads[-1]:.1f}") if loads else ("", "")
+    load = "" if not loads else f", load {low}" if low == high else f", load {low}-{high}"
     clip = _clip(reports[0])
     return (f"timing: bgsub bench, {clip['width']}x{clip['height']}, per-frame step, "
             f"{machines[0]['cpu']}, {when} UTC{load}; "

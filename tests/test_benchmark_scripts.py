@@ -49,3 +49,92 @@ def test_accuracy_renders_the_sample_seeds_it_is_given():
     assert {f for f, _ in fresh} == {f for f, _ in tuned}
     # Halves alternate within each category, as for the tuned seeds.
     assert {m.split(":")[1] for _, m in accuracy.sequences("samples", "B", (3, 4, 5))} == {"4"}
+
+
+CHART = SCRIPT.with_name("speed_chart.py")
+
+
+def _chart_module():
+    spec = importlib.util.spec_from_file_location("speed_chart_script", CHART)
+    chart = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = chart  # its dataclass looks its module up
+    spec.loader.exec_module(chart)
+    return chart
+
+
+def _chart_inputs(folder):
+    """Made-up timing (in the library's own report formats) and accuracy files; returns the
+    arguments of ``speed_chart.py`` and ``{point label: (x MOG2, F)}``."""
+    import json
+
+    from bgsub.evaluation.bench import BenchReport, BenchResult, machine_info
+    from bgsub.evaluation.bench_presets import PresetReport, PresetResult
+
+    def clip():
+        return BenchReport(width=320, height=240, frames=5, repeats=1, clip="made up",
+                           machine=machine_info())
+
+    def presets(fast_fps):
+        return PresetReport("grbm", clip(), [PresetResult("fast", {}, fast_fps, 450.0),
+                                             PresetResult("balanced", {}, 90.0, 450.0),
+                                             PresetResult("accurate", {}, 30.0, 450.0)])
+
+    methods = clip()
+    methods.results = [BenchResult(m, fps, [fps], 1000 / fps)
+                       for m, fps in (("mog2", 460.0), ("knn", 300.0), ("compensated", 92.0))]
+    timing = [folder / "presets.json", folder / "methods.json", folder / "presets2.json",
+              folder / "presets3.json"]  # three runs of the presets: fast 0.4x, 0.6x, 0.5x
+    for path, report in zip(timing, (presets(180.0), methods, presets(270.0), presets(225.0))):
+        path.write_text(json.dumps(report.to_dict()))
+    scores = {("grbm", "fast"): 0.62, ("grbm", None): 0.69, ("mog2", None): 0.21,
+              ("knn", None): 0.18, ("compensated", None): 0.45}
+    accuracy = []
+    for (method, preset), mean in scores.items():
+        path = folder / f"{method}_{preset}.json"
+        path.write_text(json.dumps({"args": {"set": "real", "half": "all", "method": method,
+                                             "preset": preset}, "mean": mean}))
+        accuracy.append(str(path))
+    made_with_p = folder / "accurate.json"  # -p values, no --preset: named by KEY=
+    made_with_p.write_text(json.dumps({"args": {"set": "real", "half": "all", "method": "grbm",
+                                                "param": ["work_width=480"]}, "mean": 0.70}))
+    accuracy.append(f"grbm:accurate={made_with_p}")
+    expected = {"grbm fast": (0.5, 0.62),  # the median of the three runs "grbm balanced": (0.2, 0.69),
+                "grbm accurate": (30 / 450, 0.70), "mog2": (1.0, 0.21),
+                "knn": (300 / 460, 0.18), "compensated": (92 / 460, 0.45)}
+    return ["--timing", *map(str, timing), "--accuracy", *accuracy], expected
+
+
+@pytest.mark.skipif(not CHART.exists(), reason="benchmarks/ is not part of an installed package")
+def test_speed_chart_draws_every_point_where_its_figures_put_it(tmp_path, capsys):
+    import cv2
+
+    chart = _chart_module()
+    argv, expected = _chart_inputs(tmp_path)
+    out = tmp_path / "chart.png"
+    assert chart.main([*argv, "-o", str(out)]) == 0
+    printed = capsys.readouterr().out
+    img = cv2.imread(str(out))
+    assert img.shape == (chart.HEIGHT, chart.WIDTH, 3)
+    assert (img < 250).any(axis=2).mean() > 0.02  # axes, grid, dots and labels, not a blank page
+    xr = chart.x_range([ratio for ratio, _ in expected.values()])
+    for label, (ratio, f) in expected.items():
+        assert f"{label} " in printed and f"{ratio:.2f}x MOG2   F {f:.3f}" in printed, printed
+        x, y = chart.to_pixel(ratio, f, xr)
+        dot = img[y - 3:y + 4, x - 3:x + 4].reshape(-1, 3)
+        # each dot is filled with one saturated colour, not white, not grey
+        assert (dot == dot[0]).all() and int(dot[0].max()) - int(dot[0].min()) > 60, label
+
+
+@pytest.mark.skipif(not CHART.exists(), reason="benchmarks/ is not part of an installed package")
+def test_speed_chart_refuses_timing_without_mog2(tmp_path, capsys):
+    import json
+
+    chart = _chart_module()
+    argv, _ = _chart_inputs(tmp_path)
+    methods = json.loads((tmp_path / "methods.json").read_text())
+    methods["results"] = [r for r in methods["results"] if r["method"] != "mog2"]
+    (tmp_path / "methods.json").write_text(json.dumps(methods))
+    out = tmp_path / "chart.png"
+    assert chart.main([*argv, "-o", str(out)]) == 2
+    assert "mog2 was not timed" in capsys.readouterr().err
+    assert not out.exists()

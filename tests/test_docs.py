@@ -42,6 +42,12 @@ def test_the_readme_picture_is_small_and_linked():
     assert "](docs/overlay.png)" in (ROOT / "README.md").read_text(encoding="utf-8")
 
 
+def test_the_speed_chart_is_small_and_linked():
+    picture = DOCS / "speed_accuracy.png"
+    assert picture.stat().st_size < 200_000
+    assert "](speed_accuracy.png)" in (DOCS / "BENCHMARKS.md").read_text(encoding="utf-8")
+
+
 def _anchors(path):
     """The anchors GitHub gives the headings of the Markdown file ``path``."""
     headings = re.findall(r"^#+ (.*)$", path.read_text(encoding="utf-8"), re.M)

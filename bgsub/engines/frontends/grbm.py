@@ -136,11 +136,10 @@ class GrbmFrontEnd(MotionFrontEnd):
                    "motion + compensated background model (the paper's method)")
     config_type = GrbmConfig
     common_params = ("model", "stride", "max_motion", *MotionFrontEnd.common_params)
-    #: The base presets, with a ``fast`` of the gated RBM's own (issue 47): at half the working
-    #: size, a patch grid of half the density in each direction (stride 16), no search for
-    #: frame-fixed overlays, and the distances in working pixels halved with it (the RANSAC
-    #: and violation thresholds, the edge windows' radius). ~1.3x the frames per second of
-    #: ``work_width=160, edge_radius=0`` alone at 320x240, with a higher development F.
+    #: The base presets, with a ``fast`` of the gated RBM's own: at half the working size, a
+    #: patch grid of half the density in each direction (stride 16), no search for frame-fixed
+    #: overlays, and the distances in working pixels halved with it (the RANSAC and violation
+    #: thresholds, the edge windows' radius).
     presets = MappingProxyType({
         **MotionFrontEnd.presets,
         "fast": {"work_width": 160, "stride": 16, "overlay": 0, "edge_radius": 4,

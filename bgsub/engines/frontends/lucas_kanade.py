@@ -57,9 +57,10 @@ class LucasKanadeFrontEnd(MotionFrontEnd):
     # The stage defaults are the grbm engine's, set for its dense but noisy patch vectors.
     # Tracked corners are sparse and precise: their agreement with the camera damps a
     # background difference as much as a disagreement boosts it, at a fixed 1.5 px (the
-    # corners' RANSAC inlier distance too).
+    # corners' RANSAC inlier distance too). No parallax field: on the few corners an object
+    # holds, its steady motion passes for near structure's (DAVIS blackswan, cows).
     stage_defaults = dict(ransac_threshold=1.5, flow_boost=0.8, flow_damp=0.8,
-                          violation_threshold=1.5, violation_noise=0.0)
+                          violation_threshold=1.5, violation_noise=0.0, parallax=0.0)
 
     def frame_data(self, gray: np.ndarray) -> LKFrame:
         return LKFrame(gray)

@@ -147,6 +147,7 @@ class ParallaxField:
         self.memory: Optional[tuple] = None  # (gamma (gh, gw) float32, known (gh, gw) uint8)
         self.epipole: Optional[np.ndarray] = None  # (3,) of the last field made
         self.edges: Optional[np.ndarray] = None  # (h, w) float32 of it: _depth_edges
+        self.share = 0.0  # the share of the vectors' weight it explained, 0 without one
 
     def discount_edges(self, score: np.ndarray, violation: Optional[np.ndarray]) -> None:
         """At the last field's depth edges, lower the background ``score`` ((h, w) float32) by
@@ -173,6 +174,7 @@ class ParallaxField:
         parallax stands out (module docstring). ``foreground`` ((h, w) uint8, the last mask)
         keeps the depths the field remembers from learning an object's motion."""
         self.epipole = self.edges = None
+        self.share = 0.0
         self._carry(matrix)
         if self.config.parallax == 0 or len(points) < 8:
             self.path.forget()
@@ -195,7 +197,7 @@ class ParallaxField:
         left = np.hypot(*(v.res - _read(field, v.now)).T) <= self.config.parallax_min
         if v.share(v.big & left) < self.config.parallax:
             return None
-        self.epipole = e
+        self.epipole, self.share = e, v.share(v.big & left)
         self.edges = _depth_edges(depths, shape, self.config.parallax_cell)
         return field
 

@@ -150,6 +150,7 @@ class Previous:
     result: Optional[MotionResult] = None  # the motion measured for the last frame given
     applied: Optional[np.ndarray] = None  # (3, 3): what it warped the model by
     gain: Optional[float] = None  # its exposure gain (set where a model scored it)
+    parallax: Optional[float] = None  # the vectors' share its parallax field explained
     frame: Optional[np.ndarray] = None  # the last frame given, at the working size
     mask: Optional[np.ndarray] = None  # ... and its (h, w) uint8 0/255 mask (working size)
 
@@ -239,7 +240,7 @@ class MovingCameraEngine(Engine):
         gray uint8, blurred by ``smooth``), ``gray`` its (h, w) uint8 gray image, ``rate`` the
         checked learning rate (0: a frozen model). Returns the (h, w) uint8 0/255 mask."""
         prev = self.previous
-        prev.result = prev.applied = prev.gain = None
+        prev.result = prev.applied = prev.gain = prev.parallax = None
         empty = np.zeros(gray.shape, np.uint8)
         if float(cv2.meanStdDev(gray)[1][0, 0]) < self.config.min_contrast:
             # Blank or textureless frame: no motion can be measured; keep the model as it is.
@@ -268,6 +269,7 @@ class MovingCameraEngine(Engine):
             self.last_status = SCENE_CUT
             return empty
         prev.applied, prev.gain = seen.applied, float(compared.gain)
+        prev.parallax = self.parallax.share if parallax is not None else 0.0
         # (Outside a region of interest the mask is cleared by the engine's caller.)
         mask = self.foreground.decide(work, gray, seen.result, seen.matrix, compared, rate,
                                       region=WHOLE_FRAME if self.roi else self._region)
@@ -394,7 +396,9 @@ class MovingCameraEngine(Engine):
         ``vectors``: the motion vectors that agree with the fit, and all the front end
         measured; ``gain``: what the frame was divided by to match the model's exposure (1.0
         without ``match_exposure``); ``model``: ``"still"`` or ``"compensated"``, the
-        background model that scored the frame.
+        background model that scored the frame; ``parallax``: the share of the vectors' weight
+        its parallax field explained (0: the homography alone,
+        :class:`~bgsub.camera.parallax.ParallaxField`).
         """
         return frame_stats(self.previous, self.last_motion, self._in_shape, self.last_status,
                            still=self.camera_still)
@@ -426,7 +430,7 @@ def frame_stats(prev: Previous, motion: Optional[np.ndarray], in_shape: Optional
     """:meth:`MovingCameraEngine.frame_stats` of the last frame ``prev`` (:class:`Previous`),
     whose applied ``motion`` (3, 3) is in the pixels of input frames of ``in_shape``."""
     stats: Dict[str, Any] = dict.fromkeys(
-        ("dx", "dy", "rotation", "scale", "inliers", "vectors", "gain", "model"))
+        ("dx", "dy", "rotation", "scale", "inliers", "vectors", "gain", "model", "parallax"))
     stats["status"] = status
     if motion is not None and prev.result is not None:  # (the first frame measured none)
         h, w = in_shape[:2]
@@ -441,6 +445,7 @@ def frame_stats(prev: Previous, motion: Optional[np.ndarray], in_shape: Optional
     if prev.gain is not None:  # (set only where a model scored the frame)
         stats["gain"] = prev.gain
         stats["model"] = "still" if still else "compensated"
+        stats["parallax"] = prev.parallax
     return stats
 
 

@@ -16,6 +16,8 @@ column          meaning
 ``foreground``  share of the mask's pixels that are foreground, 0 to 1
 ``gain``        what the frame was divided by to match the model's exposure
 ``model``       the background model that decided: ``still`` or ``compensated``
+``parallax``    the share of the motion vectors' weight a parallax field explained (a camera
+                translating through a 3-D scene; 0: the homography alone)
 ``ms``          the engine's time on the frame (``apply``), milliseconds
 =============== ===============================================================================
 
@@ -43,7 +45,7 @@ from bgsub.io.writers import SinkWriter
 
 #: The columns of a statistics file, in order.
 COLUMNS = ("frame", "status", "dx", "dy", "rotation", "scale", "inliers", "vectors",
-           "inlier_share", "foreground", "gain", "model", "ms")
+           "inlier_share", "foreground", "gain", "model", "parallax", "ms")
 
 
 def check_stats_output(path: PathLike, *, overwrite: bool = False) -> Path:

@@ -123,17 +123,26 @@ def test_the_objects_are_still_found_over_a_3d_scene(with_and_without):
 
 
 def test_bgsub_samples_and_run_end_to_end_on_a_parallax_scene(tmp_path):
+    import csv
+
     from helpers import read_frames
 
     from bgsub.cli import main
 
-    assert main(["samples", str(tmp_path), "-c", "parallax", "-s", "2", "--max-frames", "60",
-                 "-q"]) == 0
-    scene = tmp_path / "parallax_s2"
-    assert main(["run", str(scene / "parallax_s2.mp4"), "-o", str(tmp_path / "m.mkv")]) == 0
-    masks = read_frames(tmp_path / "m.mkv")[30:]
+    assert main(["samples", str(tmp_path), "-c", "parallax", "pan", "-s", "2",
+                 "--max-frames", "60", "-q"]) == 0
+    shares = {}
+    for name in ("parallax_s2", "pan_s2"):
+        out = tmp_path / name
+        assert main(["run", str(tmp_path / name / f"{name}.mp4"), "-o", str(out) + ".mkv",
+                     "--stats", str(out) + ".csv", "-q"]) == 0
+        with open(str(out) + ".csv", newline="") as f:
+            rows = list(csv.DictReader(f))[30:]
+        shares[name] = np.mean([float(r["parallax"]) for r in rows])
+    masks = read_frames(tmp_path / "parallax_s2.mkv")[30:]
     band = np.mean([m[-40:].mean() / 255 for m in masks])
     assert len(masks) == 30 and band < 0.05
+    assert shares["parallax_s2"] > 0.1 and shares["pan_s2"] == 0  # --stats says which
 
 
 def test_at_the_band_edge_the_score_counts_less_and_the_motion_has_no_opinion():

@@ -73,7 +73,7 @@ class FieldWarp:
 
     def __init__(self, matrix: np.ndarray, field: np.ndarray) -> None:
         h, w = field.shape[:2]
-        xs, ys = np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32))
+        xs, ys = pixel_grid(h, w)
         # Where the plane put each pixel, then where the previous frame saw it.
         on_plane = np.stack([xs - field[:, :, 0], ys - field[:, :, 1]], -1).reshape(1, -1, 2)
         src = cv2.perspectiveTransform(on_plane, np.linalg.inv(np.asarray(matrix, np.float64)))
@@ -97,3 +97,16 @@ def cell_index(positions: np.ndarray, shape: tuple, cell: int) -> tuple:
     gx = np.clip((positions[:, 0] // cell).astype(np.intp), 0, gw - 1)
     gy = np.clip((positions[:, 1] // cell).astype(np.intp), 0, gh - 1)
     return gy * gw + gx, (gh, gw)
+
+
+_GRIDS: dict = {}
+
+
+def pixel_grid(h: int, w: int) -> tuple:
+    """``(x, y)``: (H, W) float32 pixel coordinates, cached for the last size (read-only: they
+    are shared)."""
+    if (h, w) not in _GRIDS:
+        _GRIDS.clear()
+        xs, ys = np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32))
+        _GRIDS[(h, w)] = (xs, ys)
+    return _GRIDS[(h, w)]

@@ -26,7 +26,7 @@ from typing import Optional
 import cv2
 import numpy as np
 
-from bgsub._util import FieldWarp, cell_index, through_bgra, warp_image
+from bgsub._util import FieldWarp, cell_index, pixel_grid, through_bgra, warp_image
 from bgsub.errors import InputError
 from bgsub.motion.global_motion import apply_homography
 
@@ -150,7 +150,7 @@ def frame_evidence(prev: np.ndarray, cur: np.ndarray, matrix: np.ndarray, *,
     if residual is not None:
         # The camera-moved frame moved on by the residual: the local vectors' motion (exact for
         # a translation, and to first order for the small rotations and zooms between frames).
-        grid_x, grid_y = _pixel_grid(h, w)
+        grid_x, grid_y = pixel_grid(h, w)
         map_x, map_y = grid_x - residual[:, :, 0], grid_y - residual[:, :, 1]
         local = through_bgra(lambda img: cv2.remap(img, map_x, map_y, cv2.INTER_LINEAR,
                                                    borderMode=cv2.BORDER_REPLICATE), moved)
@@ -176,18 +176,6 @@ def _check_frames(prev: np.ndarray, cur: np.ndarray) -> None:
     if prev.shape != cur.shape:
         raise InputError(f"motion_evidence_map: prev and cur differ in shape, {prev.shape} and "
                          f"{cur.shape}")
-
-
-_GRIDS: dict = {}
-
-
-def _pixel_grid(h: int, w: int) -> tuple:
-    """``(x, y)`` (H, W) float32 pixel coordinates, cached per size."""
-    if (h, w) not in _GRIDS:
-        _GRIDS.clear()
-        xs, ys = np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32))
-        _GRIDS[(h, w)] = (xs, ys)
-    return _GRIDS[(h, w)]
 
 
 def _mean_absdiff(a: np.ndarray, b: np.ndarray, k: tuple) -> np.ndarray:

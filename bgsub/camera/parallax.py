@@ -25,7 +25,7 @@ from typing import Any, Optional
 import cv2
 import numpy as np
 
-from bgsub._util import cell_index
+from bgsub._util import cell_index, pixel_grid
 from bgsub.motion.global_motion import apply_homography
 from bgsub.settings import check_settings, setting
 
@@ -279,7 +279,7 @@ class ParallaxField:
         cell = self.config.parallax_cell
         gh, gw = grid.shape
         gamma = cv2.resize(grid, (gw * cell, gh * cell), interpolation=cv2.INTER_LINEAR)[:h, :w]
-        xs, ys = np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32))
+        xs, ys = pixel_grid(h, w)
         field = np.empty((h, w, 2), np.float32)
         field[:, :, 0] = gamma * (np.float32(e[0]) - np.float32(e[2]) * xs)
         field[:, :, 1] = gamma * (np.float32(e[1]) - np.float32(e[2]) * ys)

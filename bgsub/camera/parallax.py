@@ -25,7 +25,7 @@ from typing import Any, Optional
 import cv2
 import numpy as np
 
-from bgsub._util import cell_index, pixel_grid
+from bgsub._util import cell_index
 from bgsub.motion.global_motion import apply_homography
 from bgsub.settings import check_settings, setting
 
@@ -237,12 +237,10 @@ class ParallaxField:
         point keeps its depth over frames; an object moving along the parallax direction
         does not, and stays foreground."""
         c = self.config
-        if self.memory is None or self.memory[0].shape != grid.shape:
-            self.memory = (grid.copy(), np.ones(grid.shape, np.uint8))
-            return grid
-        gamma, known = self.memory
-        if not known.any() or np.ptp(gamma[known > 0]) < 0.5:
-            # No depths remembered yet (a camera that just began to move): the frame's.
+        gamma, known = self.memory or (None, None)
+        if (gamma is None or gamma.shape != grid.shape or not known.any()
+                or np.ptp(gamma[known > 0]) < 0.5):
+            # No depths remembered yet (a first frame, a camera that just began to move).
             self.memory = (grid.copy(), np.ones(grid.shape, np.uint8))
             return grid
         scale, offset = _relation(gamma, grid, known > 0)
@@ -275,15 +273,13 @@ class ParallaxField:
         return cv2.medianBlur(grid, 5)
 
     def _field(self, grid: np.ndarray, e: np.ndarray, shape: tuple) -> np.ndarray:
+        """``(h, w, 2) float32``: the cells' parallax factors ``grid`` (gh, gw) interpolated to
+        the frame's pixels, times the direction of the epipole ``e`` (3,), at infinity."""
         h, w = int(shape[0]), int(shape[1])
         cell = self.config.parallax_cell
         gh, gw = grid.shape
         gamma = cv2.resize(grid, (gw * cell, gh * cell), interpolation=cv2.INTER_LINEAR)[:h, :w]
-        xs, ys = pixel_grid(h, w)
-        field = np.empty((h, w, 2), np.float32)
-        field[:, :, 0] = gamma * (np.float32(e[0]) - np.float32(e[2]) * xs)
-        field[:, :, 1] = gamma * (np.float32(e[1]) - np.float32(e[2]) * ys)
-        return field
+        return gamma[:, :, None] * e[:2].astype(np.float32)
 
 
 class _Residuals:

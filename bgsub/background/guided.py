@@ -146,14 +146,17 @@ def _apply(a: List[np.ndarray], b: np.ndarray, colours: List[np.ndarray]) -> np.
     """``(H, W) uint8`` 0/255: where ``a . colours + b`` exceeds one half."""
     out = b.copy()
     for ai, c in zip(a, colours):
-        out += ai * c
-    return np.where(out > np.float32(0.5), np.uint8(255), np.uint8(0))
+        cv2.accumulateProduct(ai, c, out)  # (one pass, no temporary at the input's size)
+    return cv2.compare(out, 0.5, cv2.CMP_GT)
 
 
 def _channels(image: np.ndarray) -> List[np.ndarray]:
     """The channels of a uint8 image as float32 planes in [0, 1]."""
     planes = cv2.split(image) if image.ndim == 3 else [image]
-    return [plane.astype(np.float32) * np.float32(1.0 / 255.0) for plane in planes]
+    return [np.multiply(plane, _UNIT, dtype=np.float32) for plane in planes]
+
+
+_UNIT = np.float32(1.0 / 255.0)
 
 
 def _ridge_solve(var: dict, cov: List[np.ndarray], eps: np.float32) -> List[np.ndarray]:

@@ -47,12 +47,13 @@ import sys
 import time
 from collections import defaultdict
 from pathlib import Path
-from typing import Dict, List, Optional, Tuple
+from typing import Dict, Iterator, List, Optional, Tuple
 
 import cv2
 import numpy as np
 
 from bgsub.engines import create_engine, get_engine_spec, parse_params
+from bgsub.engines.lookback import primed
 from bgsub.evaluation.cdnet import count_frame
 from bgsub.motion.global_motion import GlobalMotion, apply_homography
 
@@ -194,16 +195,8 @@ def _run_folder(engine, seq: Path, oracle: bool,
     if motions is not None:
         fit = engine.fit = OracleFit()
     counts = np.zeros(4, np.int64)
-    for path in frames:
-        k = int(path.stem[2:])
-        if k > last:
-            break
-        image = cv2.imread(str(path), cv2.IMREAD_COLOR)
-        if degraded is not None:
-            kind, value = degraded
-            if kind == "step" and (k - 1) % int(value):
-                continue
-            image = degrade(image, kind, value, k)
+    read = _read_folder(frames, last, degraded)
+    for k, image in (read if fit is not None else primed([engine], read)):
         if fit is not None:
             fit.matrix = motions[k - 1]
         mask = engine.apply(image)
@@ -218,13 +211,31 @@ def _run_folder(engine, seq: Path, oracle: bool,
     return counts.tolist(), len(frames)
 
 
+def _read_folder(frames: List[Path], last: int,
+                 degraded: Optional[Tuple[str, float]]) -> Iterator[Tuple[int, np.ndarray]]:
+    """``(k, image)`` of a sequence's frames up to ``last``, degraded as asked."""
+    for path in frames:
+        k = int(path.stem[2:])
+        if k > last:
+            break
+        image = cv2.imread(str(path), cv2.IMREAD_COLOR)
+        if degraded is not None:
+            kind, value = degraded
+            if kind == "step" and (k - 1) % int(value):
+                continue
+            image = degrade(image, kind, value, k)
+        yield k, image
+
+
 def _run_sample(engine, member: str) -> Tuple[list, int]:
     from bgsub.samples import SceneSpec, render_frames
 
     cat, seed = member.split(":")
     counts = np.zeros(4, np.int64)
     n = 0
-    for k, (img, gt, _) in enumerate(render_frames(SceneSpec(cat, seed=int(seed), n_frames=60))):
+    scene = list(render_frames(SceneSpec(cat, seed=int(seed), n_frames=60)))
+    for k, img in primed([engine], ((k, f[0]) for k, f in enumerate(scene))):
+        gt = scene[k][1]
         mask = engine.apply(img)
         n += 1
         if k:

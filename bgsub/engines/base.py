@@ -20,7 +20,7 @@ import numbers
 import threading
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
-from typing import Any, Callable, Dict, Iterable, List, Mapping, Optional, Tuple
+from typing import Any, Callable, Dict, Iterable, List, Mapping, Optional, Sequence, Tuple
 
 import cv2
 import numpy as np
@@ -150,6 +150,10 @@ class Engine(ABC):
     last_motion: Optional[np.ndarray]
     #: ``debug_image() -> Optional[(H, W, 3) uint8]``: a picture of what the engine saw.
     debug_image: Callable[[], Optional[np.ndarray]]
+    #: ``prime(frames)``: learn the scene from a stream's first frames, up to ``lookback`` of
+    #: them, before the first :meth:`apply` (:func:`bgsub.engines.lookback.primed`).
+    prime: Callable[[Sequence[np.ndarray]], None]
+    lookback: int
     #: The region watched (:class:`bgsub.engines.roi.RegionOfInterest`), None = the whole
     #: frame: set from the ``roi`` parameter every registered engine takes.
     roi: Optional[Any] = None
@@ -221,6 +225,8 @@ CAPABILITIES = {
     "last_status": "a status after each frame ('ok' or 'fallback: <reason>')",
     "last_motion": "the estimated camera motion of the last frame",
     "debug_image": "a picture of what it saw (the motion field, inliers, camera fit)",
+    "prime": "learns the scene from a stream's first frames (its lookback) before the first "
+             "mask (bgsub.engines.lookback.primed)",
 }
 
 
@@ -228,8 +234,8 @@ def supports(engine: Any, capability: str) -> bool:
     """Whether ``engine`` has the optional ``capability`` (a key of :data:`CAPABILITIES`)."""
     if capability not in CAPABILITIES:
         raise ValueError(f"unknown engine capability {capability!r}")
-    if capability == "debug_image":
-        return callable(getattr(engine, "debug_image", None))
+    if capability in ("debug_image", "prime"):
+        return callable(getattr(engine, capability, None))
     return hasattr(engine, capability)
 
 

@@ -54,6 +54,12 @@ class EngineConfig:
     edge_step: int = setting(2, "the guided filter (edge_radius) is fitted on the mask and "
                                 "frame shrunk by this factor and scaled back up (the fast "
                                 "guided filter: 2 fits a quarter of the pixels)", low=1, high=8)
+    lookback: int = setting(30, "before its first mask the engine reads this many frames "
+                                "ahead, when its caller has them (bgsub run, eval and compare "
+                                "do), and a twin of it runs them backwards: the first masks, "
+                                "those the twin has seen more of the scene for, are the twin's "
+                                "(0 = off: a model that starts at frame 1 gives no mask for it "
+                                "and weak ones after)", low=0)
     threads: int = setting(1, "BLAS and OpenCV worker threads while a frame is processed (0 = "
                               "as configured; more threads are slower for these small frames)",
                            low=0)

@@ -28,8 +28,10 @@ return an empty mask (or, for a scene cut, restart the model) and say why in ``l
 
 from __future__ import annotations
 
+import collections
+import functools
 from dataclasses import dataclass
-from typing import Any, Dict, Optional, Type
+from typing import Any, Callable, Dict, Optional, Sequence, Type
 
 import cv2
 import numpy as np
@@ -48,7 +50,7 @@ from bgsub.background.still_switch import NoStillSwitch, StillCameraSwitch
 from bgsub.camera.parallax import ParallaxConfig, ParallaxField, without_parallax
 from bgsub.camera import KNOWN_MOTION_HELP, CameraConfig, CameraStage, KnownMotion, work_scale
 from bgsub.engines.base import (Engine, Param, check_fgmask, check_frame, check_learning_rate,
-                                opencv_keywords, register_engine)
+                                get_engine_spec, opencv_keywords, register_engine)
 from bgsub.engines.config import MIN_WORK_WIDTH, EngineConfig, engine_params, stage_configs
 from bgsub.engines.frontend import MotionFrontEnd
 from bgsub.engines.roi import WHOLE_FRAME, FrameLess
@@ -207,6 +209,10 @@ class MovingCameraEngine(Engine):
         self.last_status = "ok"
         self.previous = Previous()
         self._in_shape: Optional[tuple] = None  # the input frames' (H, W) or (H, W, 3)
+        #: ``() -> MovingCameraEngine``: a new engine of the same settings (set by the
+        #: registered factory; None: :meth:`prime` does nothing).
+        self.twin: Optional[Callable[[], "MovingCameraEngine"]] = None
+        self._early: collections.deque = collections.deque()  # masks prime read ahead
 
     # ------------------------------------------------------------------ Engine API
 
@@ -223,10 +229,41 @@ class MovingCameraEngine(Engine):
             mask = self._step(smoothed, gray, rate)
             out = place_mask(mask, work, image, self.config)
         self.previous.frame, self.previous.mask = work, mask
+        if self._early:
+            out = self._early.popleft()
         if fgmask is not None:
             fgmask[...] = out
             return fgmask
         return out
+
+    @property
+    def lookback(self) -> int:
+        """How many of a stream's first frames :meth:`prime` takes: ``lookback``, or 0 with a
+        known camera motion (given frame by frame, from the first) or no way to build a twin
+        (an engine not made by its registered factory)."""
+        if isinstance(self.camera.known, KnownMotion) or self.twin is None:
+            return 0
+        return self.config.lookback
+
+    def prime(self, frames: Sequence[np.ndarray]) -> None:
+        """Read ahead before the first mask: a twin of this engine (same settings, its own
+        state) runs the stream's first ``frames`` (each (H, W[, 3]) uint8, in order, at most
+        :attr:`lookback`) backwards, and for the first frames, those it has seen more of the
+        scene for than this engine will have, its masks are what :meth:`apply` returns. This
+        engine still processes every frame, so its own model grows as it would have; only
+        those masks are replaced. Does nothing after the first frame or with fewer than three
+        frames."""
+        frames = list(frames)[:self.lookback]
+        if self.previous.data is not None or len(frames) < 3:
+            return
+        twin = self.twin()
+        try:
+            backwards = [twin.apply(image) for image in reversed(frames)]
+        finally:
+            twin.close()
+        n = len(frames)
+        # Frame t (0-based) has t frames before it going forward, n - 1 - t going backward.
+        self._early = collections.deque(backwards[n - 1 - t] for t in range(n) if n - 1 - t > t)
 
     def close(self) -> None:
         """Stop the engine's second thread (``overlap=1``) now rather than when the engine is
@@ -512,16 +549,24 @@ def register_frontend(frontend_type: Type[MotionFrontEnd]) -> None:
         given = (None if isinstance(known_motion, str) and not known_motion
                  else KnownMotion.from_value(known_motion))
         frontend = frontend_type.from_params(**{k: v for k, v in values.items() if k in front})
-        return MovingCameraEngine(frontend, engine=stages[EngineConfig],
+        engine = MovingCameraEngine(frontend, engine=stages[EngineConfig],
                                   camera=stages[CameraConfig],
                                   background=stages[BackgroundConfig],
                                   foreground=stages[ForegroundConfig],
                                   fusion=stages[FusionConfig], overlay=stages[OverlayConfig],
                                   parallax=stages[ParallaxConfig], known_motion=given)
+        engine.twin = functools.partial(_registered, name, known_motion=known_motion, **values)
+        return engine
 
     factory.__module__ = frontend_type.__module__  # the engine is the front end's
     register_engine(name, frontend_type.description, params,
                     common=frontend_type.common_params, presets=frontend_type.presets)(factory)
+
+
+def _registered(name: str, **values: Any) -> MovingCameraEngine:
+    """A new engine from the registered factory of ``name`` (a module-level function, so an
+    engine's ``twin`` pickles with it)."""
+    return get_engine_spec(name).factory(**values)
 
 
 def _register_builtins() -> None:

@@ -39,6 +39,7 @@ from typing import (Any, Callable, Dict, Iterable, Iterator, List, Mapping, Opti
 import numpy as np
 
 from bgsub.engines.base import supports
+from bgsub.engines.lookback import primed
 from bgsub.errors import ProcessingError
 
 #: Signals the loop holds back while a frame is handed out: Ctrl-C, and the command line's
@@ -270,6 +271,10 @@ class FrameLoop:
                 stack.push(self._closer(consumer, interrupts))
                 consumer.start(self.engines)
             try:
+                took: Dict[str, float] = {}
+                frames = primed(self.engines, frames, took=took)
+                for name, seconds in took.items():  # (the read-ahead counts as the engine's)
+                    self.stats.engines[name].seconds += seconds
                 for index, frame in frames:
                     self._one_frame(index, frame, interrupts)
                 self.stats.complete = True

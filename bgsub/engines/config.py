@@ -55,7 +55,7 @@ class EngineConfig:
                                 "frame shrunk by this factor and scaled back up (the fast "
                                 "guided filter: 2 fits a quarter of the pixels)", low=1, high=8)
     lookback: int = setting(30, "before its first mask the engine reads this many frames "
-                                "ahead, when its caller has them (bgsub run, eval and compare "
+                                "ahead, when its caller has them (bgsub run and compare "
                                 "do), and a twin of it runs them backwards: the first masks, "
                                 "those the twin has seen more of the scene for, are the twin's "
                                 "(0 = off: a model that starts at frame 1 gives no mask for it "

@@ -230,7 +230,8 @@ class MovingCameraEngine(Engine):
             out = place_mask(mask, work, image, self.config)
         self.previous.frame, self.previous.mask = work, mask
         if self._early:
-            out = self._early.popleft()
+            twins, agree = self._early.popleft()
+            out = cv2.bitwise_and(out, twins) if agree else twins
         if fgmask is not None:
             fgmask[...] = out
             return fgmask
@@ -249,8 +250,8 @@ class MovingCameraEngine(Engine):
         """Read ahead before the first mask: a twin of this engine (same settings, its own
         state) runs the stream's first ``frames`` (each (H, W[, 3]) uint8, in order, at most
         :attr:`lookback`) backwards, and for the first frames, those it has seen more of the
-        scene for than this engine will have, its masks are what :meth:`apply` returns. This
-        engine still processes every frame, so its own model grows as it would have; only
+        scene for than this engine will have, its masks are what :meth:`apply` returns; where
+        the twin finds nothing in frame 1, only where this engine's masks agree. This engine still processes every frame, so its own model grows as it would have; only
         those masks are replaced. Does nothing after the first frame or with fewer than three
         frames."""
         frames = list(frames)[:self.lookback]
@@ -262,8 +263,13 @@ class MovingCameraEngine(Engine):
         finally:
             twin.close()
         n = len(frames)
+        # Nothing moving in frame 1: this engine's model starts on the bare scene, while the
+        # twin's started on frame n's objects and may keep their ghosts; and a young model
+        # still takes near ground for foreground. Foreground then needs both to agree.
+        agree = not backwards[-1].any()
         # Frame t (0-based) has t frames before it going forward, n - 1 - t going backward.
-        self._early = collections.deque(backwards[n - 1 - t] for t in range(n) if n - 1 - t > t)
+        self._early = collections.deque((backwards[n - 1 - t], agree)
+                                        for t in range(n) if n - 1 - t > t)
 
     def close(self) -> None:
         """Stop the engine's second thread (``overlap=1``) now rather than when the engine is

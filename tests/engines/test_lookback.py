@@ -114,3 +114,28 @@ def test_bgsub_run_gives_a_mask_from_the_first_frame(tmp_path, capsys):
     capsys.readouterr()
     assert not runs[0][0].any() and _f(runs[16][0], truths[0]) > 0.8
     assert all(np.array_equal(a, b) for a, b in zip(runs[0][8:], runs[16][8:]))
+
+
+def test_a_stream_that_starts_on_the_bare_scene_is_foreground_where_both_agree():
+    # The sample scenes' objects enter after an object-free warm-up: the twin meets them in its
+    # first frame and could leave their ghosts in the first frames' masks.
+    frames, truths = _scene(n=30, category="static", seed=2)
+    assert not truths[0].any() and any(t.any() for t in truths)
+    cold = _masks(create_engine("grbm", lookback=30), frames, prime=False)
+    warm = _masks(create_engine("grbm", lookback=30), frames, prime=True)
+    # (the engine's own first masks are empty there, and the twin's ghosts are not theirs)
+    assert all(np.array_equal(w, c) for w, c in zip(warm, cold))
+
+
+def test_the_near_ground_a_young_model_calls_foreground_is_not_in_the_first_masks():
+    # A camera on a track past a near band: until the parallax field stands, the engine's own
+    # first masks hold the band; the twin, which reaches frame 1 with the field, does not.
+    frames, truths = _scene(n=30, category="parallax", seed=0)
+    cold = _masks(create_engine("grbm", lookback=30), frames, prime=False)
+    warm = _masks(create_engine("grbm", lookback=30), frames, prime=True)
+
+    def false_positives(masks):
+        return sum(int(np.count_nonzero((masks[k] > 0) & (truths[k] == 0))) for k in range(1, 6))
+
+    assert false_positives(cold) > 10_000
+    assert false_positives(warm) < 0.01 * false_positives(cold)

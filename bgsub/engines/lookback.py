@@ -36,8 +36,9 @@ def primed(engines: Union[Mapping[str, Any], Iterable[Any]],
     every engine of ``engines`` (a sequence, or a mapping by name) that supports ``prime``
     has been primed with as many of the first frames as its ``lookback`` asks for. The frames
     read ahead are held (copied) until they are handed on: memory for the largest
-    ``lookback`` (at most :data:`READ_AHEAD_BYTES`), whatever the stream's length. ``took``, when given, receives each primed
-    engine's seconds by name (mapping) or position (sequence)."""
+    ``lookback`` (at most :data:`READ_AHEAD_BYTES`), whatever the stream's length. ``took``,
+    when given, receives each primed engine's seconds by name (mapping) or position
+    (sequence)."""
     named = engines.items() if isinstance(engines, Mapping) else enumerate(engines)
     takers = [(name, engine) for name, engine in named if supports(engine, "prime")]
     wanted = max((int(getattr(engine, "lookback", 0)) for _, engine in takers), default=0)

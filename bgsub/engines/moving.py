@@ -250,8 +250,9 @@ class MovingCameraEngine(Engine):
         """Read ahead before the first mask: a twin of this engine (same settings, its own
         state) runs the stream's first ``frames`` (each (H, W[, 3]) uint8, in order, at most
         :attr:`lookback`) backwards, and for the first frames, those it has seen more of the
-        scene for than this engine will have, its masks are what :meth:`apply` returns; where
-        the twin finds nothing in frame 1, only where this engine's masks agree. This engine still processes every frame, so its own model grows as it would have; only
+        scene for than this engine will have, its masks are what :meth:`apply` returns (where
+        the twin finds nothing in frame 1, only where this engine's own masks agree). This
+        engine still processes every frame, so its own model grows as it would have; only
         those masks are replaced. Does nothing after the first frame or with fewer than three
         frames."""
         frames = list(frames)[:self.lookback]

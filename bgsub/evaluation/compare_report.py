@@ -21,8 +21,9 @@ PathLike = Union[str, "Path"]
 
 #: What the fps column measures; printed with every report.
 TIMING_NOTE = (
-    "fps = frames / seconds spent inside engine.apply() (decoding, scoring and writing "
-    "excluded); each frame is decoded once and fed to every method."
+    "fps = frames / seconds spent inside the engine: apply() and the look-back start's "
+    "read-ahead (decoding, scoring and writing excluded); each frame is decoded once and fed "
+    "to every method."
 )
 
 #: The report's files, at the top of the report folder.

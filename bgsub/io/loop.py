@@ -16,9 +16,11 @@ The loop owns what every command needs around the frames:
   once what it holds); a second signal during that shutdown is ignored, so it cannot cut the
   finishing of an output short. The interrupt (``KeyboardInterrupt``, or the command line's
   ``Terminated``) or error is then raised again for the caller;
-* **counting**: frames, wall-clock time, and per engine its time in ``apply`` and the frames
-  whose ``last_status`` was not ``"ok"`` (:class:`RunStats`, also readable as
-  :attr:`FrameLoop.stats` after an interrupt).
+* **look-back start**: the engines that can are handed the stream's first frames ahead of the
+  first mask (:func:`bgsub.engines.lookback.primed`);
+* **counting**: frames, wall-clock time, and per engine its time in ``apply`` (and in that
+  read-ahead) and the frames whose ``last_status`` was not ``"ok"`` (:class:`RunStats`, also
+  readable as :attr:`FrameLoop.stats` after an interrupt).
 
 Signals are held and ignored only for those that already have a Python handler (Ctrl-C's, and
 the command line's SIGTERM/SIGHUP handler), and only in the main thread.

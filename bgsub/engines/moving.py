@@ -557,11 +557,11 @@ def register_frontend(frontend_type: Type[MotionFrontEnd]) -> None:
                  else KnownMotion.from_value(known_motion))
         frontend = frontend_type.from_params(**{k: v for k, v in values.items() if k in front})
         engine = MovingCameraEngine(frontend, engine=stages[EngineConfig],
-                                  camera=stages[CameraConfig],
-                                  background=stages[BackgroundConfig],
-                                  foreground=stages[ForegroundConfig],
-                                  fusion=stages[FusionConfig], overlay=stages[OverlayConfig],
-                                  parallax=stages[ParallaxConfig], known_motion=given)
+                                    camera=stages[CameraConfig],
+                                    background=stages[BackgroundConfig],
+                                    foreground=stages[ForegroundConfig],
+                                    fusion=stages[FusionConfig], overlay=stages[OverlayConfig],
+                                    parallax=stages[ParallaxConfig], known_motion=given)
         engine.twin = functools.partial(_registered, name, known_motion=known_motion, **values)
         return engine
 

@@ -6,12 +6,13 @@
 * decide (:meth:`Foreground.is_cut`, :meth:`Foreground.decide`): a new shot, or the mask: the
   compensated model's score (the still-camera model's while the camera is still) fused with the
   motion evidence, less the blobs new since the last frame, grown over the last objects'
-  colours, with the holes it and the frame's edges enclose filled;
+  colours, with the holes it and the frame's edges enclose filled, less the shadows (on a
+  moving camera);
 * learn (:meth:`Foreground.learn`): the models' update, deferred to the next frame, where it
   runs in the second thread beside the motion front end.
 
 The settings of the policies these stages apply (exposure matching, the scene cut, the
-still-camera switch) are one :class:`ForegroundConfig`.
+still-camera switch, the shadows) are one :class:`ForegroundConfig`.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from bgsub.background.fusion import Fusion
 from bgsub.background.object_colour import ObjectColours
 from bgsub.background.persistence import BlobPersistence
 from bgsub.background.scene_cut import SceneCut
+from bgsub.background.shadow import ShadowVeto
 from bgsub.motion.result import MotionResult
 from bgsub.settings import check_settings, setting
 
@@ -37,8 +39,9 @@ __all__ = ["ForegroundConfig", "Comparison", "Lesson", "Foreground"]
 class ForegroundConfig:
     """Settings of the foreground policies: exposure matching
     (:func:`~bgsub.background.exposure.match_exposure`), the scene cut
-    (:class:`~bgsub.background.scene_cut.SceneCut`) and the still-camera switch
-    (:class:`~bgsub.background.still_switch.StillCameraSwitch`)."""
+    (:class:`~bgsub.background.scene_cut.SceneCut`), the still-camera switch
+    (:class:`~bgsub.background.still_switch.StillCameraSwitch`) and the shadows
+    (:class:`~bgsub.background.shadow.ShadowVeto`)."""
 
     match_exposure: bool = setting(True, "divide each frame by its brightness gain against "
                                          "the compensated background model (the median ratio "
@@ -80,6 +83,17 @@ class ForegroundConfig:
                                        "this many times the pixel's usual distance to its "
                                        "samples (0 = one radius of 20 for every pixel)", low=0)
 
+    shadow: float = setting(0.5, "clear from a moving camera's mask the shadows: where the frame "
+                                 "is the compensated background darker, by a brightness ratio "
+                                 "between this and 0.95, with its chromaticity (shadow_chroma) "
+                                 "and texture (shadow_texture) (0 = off)", low=0, high=0.95)
+    shadow_chroma: float = setting(0.03, "a shadow's chromaticity (each channel's share of the "
+                                         "brightness) differs from the background's by at most "
+                                         "this", low=0, high=1)
+    shadow_texture: float = setting(0.7, "a shadow's brightness correlates with the "
+                                         "background's by at least this over 5x5 windows (or "
+                                         "both are flat there)", low=-1, high=1)
+
     def __post_init__(self) -> None:
         check_settings(self)
 
@@ -111,16 +125,19 @@ class Lesson:
 class Foreground:
     """The compare, decide and learn stages (module docstring) over the compensated model
     ``bg`` and the ``fusion``, with the policies ``exposure`` (``(frame, model) -> (exposed,
-    gain)``), ``scene_cut``, ``still_switch``, ``persistence`` and ``object_colours``;
+    gain)``), ``scene_cut``, ``still_switch``, ``persistence``, ``object_colours`` and
+    ``shadows``;
     ``alongside`` is the engine's second thread's
     :meth:`~bgsub.engines.threads.SecondThread.alongside`."""
 
     def __init__(self, bg: CompensatedBackground, fusion: Fusion, *, exposure: Callable,
                  scene_cut: SceneCut, still_switch: Any, persistence: BlobPersistence,
-                 object_colours: ObjectColours, alongside: Callable) -> None:
+                 object_colours: ObjectColours, shadows: ShadowVeto,
+                 alongside: Callable) -> None:
         self.bg, self.fusion, self.exposure = bg, fusion, exposure
         self.scene_cut, self.still_switch = scene_cut, still_switch
         self.persistence, self.object_colours = persistence, object_colours
+        self.shadows = shadows
         self.alongside = alongside
         self.lesson: Optional[Lesson] = None
 
@@ -169,8 +186,9 @@ class Foreground:
                region: Any) -> np.ndarray:
         """The (h, w) uint8 0/255 mask of the frame ``work`` (``gray`` its gray image) seen
         with motion ``result`` and camera motion ``matrix``, cleared outside ``region`` (its
-        ``clear_outside``: the frame less its frame-fixed overlays); its
-        :class:`Lesson`, at learning rate ``rate``, is kept for :meth:`learn`."""
+        ``clear_outside``: the frame less its frame-fixed overlays) and, on a moving camera, of
+        its shadows; its :class:`Lesson`, at learning rate ``rate``, is kept for
+        :meth:`learn`."""
         still = self.still_switch.judge(work, result, compensated=self.bg,
                                         compensated_score=compared.score)
         score = compared.score if still is None else still
@@ -183,6 +201,10 @@ class Foreground:
         self.lesson = Lesson(exposed=compared.exposed, gain=compared.gain, work=work,
                              mask=mask.copy(), violation=compared.violation,
                              confirmed=confirmed, rate=rate)
+        if still is None:
+            # The models learn a shadow as part of its object (the lesson above): it leaves
+            # with it, and shade learnt into the background would stay behind as a ghost.
+            self.shadows.veto(mask, compared.exposed, self.bg)
         return mask
 
     def learn(self) -> None:

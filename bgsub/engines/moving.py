@@ -46,6 +46,7 @@ from bgsub.background.object_colour import ObjectColours
 from bgsub.background.overlay import OverlayConfig, OverlayDetector
 from bgsub.background.persistence import BlobPersistence
 from bgsub.background.scene_cut import SceneCut
+from bgsub.background.shadow import ShadowVeto
 from bgsub.background.still_switch import NoStillSwitch, StillCameraSwitch
 from bgsub.camera.parallax import ParallaxConfig, ParallaxField, without_parallax
 from bgsub.camera import KNOWN_MOTION_HELP, CameraConfig, CameraStage, KnownMotion, work_scale
@@ -202,6 +203,7 @@ class MovingCameraEngine(Engine):
             persistence=BlobPersistence(self.fusion.config.persist),
             object_colours=ObjectColours(radius=self.fusion.config.grow_radius,
                                          above=self.fusion.config.grow_above),
+            shadows=ShadowVeto(low=f.shadow, chroma=f.shadow_chroma, texture=f.shadow_texture),
             alongside=self.thread.alongside)
         self.overlays = OverlayDetector(overlay or defaults[OverlayConfig])
         self.parallax = ParallaxField(parallax or defaults[ParallaxConfig])

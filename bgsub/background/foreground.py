@@ -92,7 +92,7 @@ class ForegroundConfig:
                                          "this", low=0, high=1)
     shadow_texture: float = setting(0.7, "a shadow's brightness correlates with the "
                                          "background's by at least this over 5x5 windows (or "
-                                         "both are flat there)", low=-1, high=1)
+                                         "both are flat there)", low=0, high=1)
 
     def __post_init__(self) -> None:
         check_settings(self)

@@ -50,7 +50,8 @@ class ShadowVeto:
         ``frame`` ((h, w, 3) uint8, at the model's exposure) against ``bg``, the compensated
         model warped to the frame. A gray ((h, w)) frame or model is left as it is."""
         mean = bg.mean
-        if (self.low <= 0 or mean is None or frame.ndim != 3 or mean.shape != frame.shape
+        # (The model is (h, w, c): a gray (h, w) frame never matches its shape.)
+        if (self.low <= 0 or mean is None or mean.shape != frame.shape
                 or not cv2.countNonZero(mask)):
             return mask
         # Only the mask's box, and the texture windows around it, can matter.
@@ -65,7 +66,8 @@ class ShadowVeto:
         ys, xs = np.nonzero(shade)
         if ys.size == 0:
             return mask
-        # The chromaticity, then the texture, of the candidates only: a few of the box's pixels.
+        # The chromaticity of the candidates alone (a few of the box's pixels); the texture
+        # needs their windows, so it is correlated over the box and read at the candidates.
         hue_f = f[ys, xs] / bright_f[ys, xs, None]
         hue_m = m[ys, xs] / bright_m[ys, xs, None]
         keep = np.abs(hue_f - hue_m).max(axis=1) <= self.chroma

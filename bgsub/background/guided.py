@@ -78,13 +78,29 @@ def guided_mask(mask: np.ndarray, guide: np.ndarray, full_guide: np.ndarray, *,
         return out
     # Scaled up whole: the coefficients are 0 outside the box.
     h, w = -(-mask.shape[0] // step), -(-mask.shape[1] // step)
+    size = (full_guide.shape[1], full_guide.shape[0])
     planes = []
     for part in a + [b]:
         whole = np.zeros((h, w), np.float32)
         whole[y0 // step:y0 // step + part.shape[0], x0 // step:x0 // step + part.shape[1]] = part
-        planes.append(cv2.resize(whole, (full_guide.shape[1], full_guide.shape[0]),
-                                 interpolation=cv2.INTER_LINEAR))
-    return _apply(planes[:-1], planes[-1], _channels(full_guide))
+        planes.append(cv2.resize(whole, size, interpolation=cv2.INTER_LINEAR))
+    # Beyond the box scaled up every plane is exactly 0, and so is the mask: the frame's
+    # colours are read and weighed inside it only.
+    rows = _reach(y0 // step, -(-y1 // step), h, size[1])
+    cols = _reach(x0 // step, -(-x1 // step), w, size[0])
+    out = np.zeros(size[::-1], np.uint8)
+    out[rows, cols] = _apply([p[rows, cols] for p in planes[:-1]], planes[-1][rows, cols],
+                             _channels(full_guide[rows, cols]))
+    return out
+
+
+def _reach(start: int, stop: int, n: int, size: int) -> slice:
+    """The pixels, of ``size`` along an axis, that a bilinear scaling up from ``n`` pixels
+    draws from the pixels ``start:stop`` (and one more on each side, for safety)."""
+    scale = size / n  # output pixel x reads input (x + 0.5) / scale - 0.5 and its next one
+    lo = int(np.floor((start - 0.5) * scale - 0.5)) - 1
+    hi = int(np.ceil((stop + 0.5) * scale - 0.5)) + 2
+    return slice(max(lo, 0), min(hi, size))
 
 
 def _shrunk(image: np.ndarray, step: int) -> np.ndarray:

@@ -31,7 +31,7 @@ import numpy as np
 from bgsub.errors import InputError
 from bgsub.motion.config import FlowConfig
 from bgsub.motion.dense import dense_from_patches
-from bgsub.motion.patches import LevelReading, PatchGrids, PatchMotion, patch_motion, read_level
+from bgsub.motion.patches import LevelReading, PatchGrids, patch_motion, read_level, reads_raw
 from bgsub.motion.pyramid import (FramePyramid, MotionRangeWarning, PyramidReach, auto_levels,
                                   model_range, motion_reach, pyramid_reach, scale_homography)
 from bgsub.motion.starts import StartSearch, choose_start, corner_shift
@@ -173,7 +173,7 @@ class _Reader:
         if (self.config.iterations > 1 and plan.pre_stride != plan.fine_stride
                 and not grids.has(fine_shape, plan.pre_stride)):
             if (plan.pre_stride % plan.fine_stride == 0 and grids.max_patches is None
-                    and not isinstance(self.model, PatchMotion)):
+                    and not reads_raw(self.model)):
                 # The refining grid is every (pre_stride / fine_stride)-th patch of the final
                 # grid: take that subset of the final grid's patches and projections.
                 grids.add_subgrid(fine_shape, plan.fine_stride, plan.pre_stride)

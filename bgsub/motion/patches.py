@@ -22,9 +22,8 @@ from bgsub.motion.global_motion import (GlobalMotion, apply_homography, fit_glob
 from bgsub.motion.pyramid import warp_back
 
 __all__ = ["WEAK_TEXTURE", "PatchMotion", "LevelGrid", "LevelReading", "PatchGrids",
-           "level_texture_map",
-           "patch_motion", "patches_at", "read_level", "reading_from", "texture_weights",
-           "textured_pixels"]
+           "level_texture_map", "patch_motion", "patches_at", "read_level", "reading_from",
+           "reads_raw", "texture_weights", "textured_pixels"]
 
 #: Patches with less than this fraction of the level's largest structure-tensor eigenvalue are
 #: at the noise level when the stronger ones lie in one compact region (``_COMPACT``): see
@@ -49,6 +48,13 @@ class PatchMotion(Protocol):
         float32`` raw patch pairs ``x_raw`` / ``y_raw`` in [0, 1], within ``max_disp`` px."""
 
 
+def reads_raw(model: Any) -> bool:
+    """Whether ``model`` is a :class:`PatchMotion`: the protocol's own test (both members
+    present), without ``isinstance``'s scan of the protocol, which costs tens of microseconds
+    and runs several times a frame."""
+    return hasattr(model, "patch_size") and callable(getattr(model, "patch_motion", None))
+
+
 def patch_motion(model: Any, x_raw: np.ndarray, y_raw: np.ndarray, *, max_disp: int,
                  x_features: Any = None) -> tuple:
     """One batched gated-RBM readout.
@@ -69,7 +75,7 @@ def patch_motion(model: Any, x_raw: np.ndarray, y_raw: np.ndarray, *, max_disp: 
     """
     if len(x_raw) == 0:
         return np.zeros((0, 2), np.float32), np.zeros(0, np.float32), np.zeros(0, bool)
-    if isinstance(model, PatchMotion):
+    if reads_raw(model):
         return model.patch_motion(x_raw, y_raw, max_disp=max_disp)
     from bgsub.model import readout
 
@@ -256,7 +262,7 @@ class PatchGrids:
         return LevelGrid(centres, grid_shape, tex, pick, x, stride, self._features(x))
 
     def _features(self, x: np.ndarray) -> Any:
-        if isinstance(self.model, PatchMotion) or len(x) == 0:
+        if reads_raw(self.model) or len(x) == 0:
             return None
         from bgsub.model.readout import patch_features
 

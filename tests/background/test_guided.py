@@ -93,3 +93,26 @@ def test_a_step_below_one_is_refused():
     frame, _, small, small_mask = _scene()
     with pytest.raises(InputError, match="step"):
         guided_mask(small_mask, small, frame, radius=4, eps=1e-3, step=0)
+
+
+
+@pytest.mark.parametrize("size", [(487, 353), (641, 470), (160, 119)])
+def test_an_object_is_placed_as_if_the_whole_frame_were_filtered(size):
+    # The scaled-up mask is computed only around the mask's bounding box. Two specks in
+    # opposite corners stretch that box over the whole frame: away from the specks the
+    # result must not change, at scales that are not whole numbers.
+    rng = np.random.default_rng(size[0])
+    frame = rng.integers(0, 256, size[::-1] + (3,), np.uint8)
+    small = cv2.resize(frame, (150, 110), interpolation=cv2.INTER_AREA)
+    reach = int(12 * size[0] / 150) + 4  # input px: the specks' windows, scaled up, and more
+    for centre in [(40, 30), (75, 55), (120, 90)]:
+        mask = np.zeros((110, 150), np.uint8)
+        cv2.circle(mask, centre, 9, 255, -1)
+        specks = mask.copy()
+        specks[0, 0] = specks[-1, -1] = 255
+        alone = guided_mask(mask, small, frame, radius=3, eps=1e-3)
+        whole = guided_mask(specks, small, frame, radius=3, eps=1e-3)
+        away = np.ones(alone.shape, bool)
+        away[:reach, :reach] = away[-reach:, -reach:] = False
+        assert alone.any()
+        np.testing.assert_array_equal(alone[away], whole[away])

@@ -21,7 +21,7 @@ from bgsub.motion.config import FlowConfig
 from bgsub.motion.flowfield import (FlowEstimate, FramePyramid, dense_from_patches,
                                     estimate_flow, prepare_first_frame)
 from bgsub.motion.global_motion import GlobalMotion
-from bgsub.motion.patches import PatchMotion
+from bgsub.motion.patches import reads_raw
 from bgsub.motion.refine import MIN_REFINE_WINDOW, refine_vectors
 from bgsub.settings import check_settings, config_params, setting
 
@@ -169,7 +169,7 @@ class GrbmFrontEnd(MotionFrontEnd):
         return FramePyramid(gray)
 
     def prepare(self, data: FramePyramid) -> None:
-        if not isinstance(self.model, PatchMotion):
+        if not reads_raw(self.model):
             # With prior_levels, the next pair is normally read from the previous motion on
             # the reduced pyramid: prepare that; a read without a prior (or a retry) cuts the
             # other levels when it needs them.
@@ -339,11 +339,11 @@ def _load(model: Any, contrast_floor: float) -> Any:
     may be shared: a caller's)."""
     from bgsub.model.rbm import load_model
 
-    model = model if isinstance(model, PatchMotion) else load_model(model)
+    model = model if reads_raw(model) else load_model(model)
     if (contrast_floor > 0 and getattr(model, "normalization", None) == "contrast"
             and contrast_floor != model.contrast_floor):
         model = dataclasses.replace(model, contrast_floor=float(contrast_floor), _cache={})
-    if not isinstance(model, PatchMotion):
+    if not reads_raw(model):
         # Per-model constants of the readout, once here rather than in the first frame.
         from bgsub.model.readout import precompute
         from bgsub.motion.flowfield import model_range

@@ -25,7 +25,7 @@ def test_each_moving_engine_has_the_three_presets_of_its_front_end(method):
 def test_the_gated_rbm_has_a_fast_preset_of_its_own_and_the_base_others():
     assert GrbmFrontEnd.presets["fast"] == {"work_width": 160, "stride": 16, "overlay": 0,
                                             "edge_radius": 4, "ransac_threshold": 0.5,
-                                            "violation_threshold": 0.375}
+                                            "violation_threshold": 0.375, "overlap": 0}
     assert LucasKanadeFrontEnd.presets == MotionFrontEnd.presets
     for name in ("balanced", "accurate"):
         assert GrbmFrontEnd.presets[name] == MotionFrontEnd.presets[name]

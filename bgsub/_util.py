@@ -34,9 +34,9 @@ def is_affine(matrix: np.ndarray) -> bool:
 
 def through_bgra(resample: Callable[[np.ndarray], np.ndarray],
                  img: np.ndarray) -> np.ndarray:
-    """``resample(img)`` for an OpenCV resampling (warp, remap) that treats channels alike: a
-    3-channel ``img`` goes through BGRA, since OpenCV's 4-channel bilinear path is faster than
-    its 3-channel one and gives the same values per channel."""
+    """``resample(img)`` for an OpenCV resampling that treats channels alike: a 3-channel
+    ``img`` goes through BGRA, since OpenCV's 4-channel path is faster than its 3-channel one
+    for ``remap`` and gives the same values per channel."""
     if img.ndim == 3 and img.shape[2] == 3:
         return cv2.cvtColor(resample(cv2.cvtColor(img, cv2.COLOR_BGR2BGRA)), cv2.COLOR_BGRA2BGR)
     return resample(img)
@@ -47,6 +47,10 @@ def warp_image(img: np.ndarray, matrix: np.ndarray, size: tuple, flags: int,
     """``img`` ((H, W) or (H, W, C) float32 or uint8) warped by the (3, 3) ``matrix`` to
     ``size`` (W, H) with OpenCV's interpolation ``flags`` and ``border`` mode; same dtype and
     channel count."""
+    if img.dtype == np.float32:
+        # Float warps run faster in three channels than through BGRA (about 0.6x the time at
+        # 320x240, the same values); uint8 ones about as fast either way.
+        return _warp(img, matrix, size, flags, border)
     return through_bgra(lambda each: _warp(each, matrix, size, flags, border), img)
 
 

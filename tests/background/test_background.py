@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from bgsub.errors import InputError, describe_shape
-from bgsub.background.compensated import BackgroundConfig, CompensatedBackground
+from bgsub.background.compensated import BackgroundConfig, CompensatedBackground, warp_image
 from bgsub.background.evidence import motion_evidence_map
 from bgsub.background.fusion import clean_mask, flow_violation_map, fuse_masks, persistent_blobs
 
@@ -450,3 +450,22 @@ def test_a_gain_read_too_high_on_every_frame_does_not_drift_a_model_that_follows
         assert drift == pytest.approx(1.0, abs=0.03)
     else:
         assert drift > 1.3
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.float32])
+@pytest.mark.parametrize("skew", [0.0, 2e-4])
+def test_a_colour_image_is_warped_as_each_channel_alone(dtype, skew):
+    # Colour images take another path through OpenCV than gray ones (BGRA for uint8, three
+    # channels for float32): the values must be those of each channel warped alone (to the
+    # last float bit: OpenCV's multi-channel float kernels round a little differently).
+    rng = np.random.default_rng(3)
+    image = (rng.random((61, 83, 3)) * 255).astype(dtype)
+    matrix = np.array([[1.01, 0.02, 2.3], [-0.015, 0.99, -1.7], [skew, -skew, 1.0]])
+    for flags in (cv2.INTER_LINEAR, cv2.INTER_NEAREST):
+        warped = warp_image(image, matrix, (83, 61), flags, cv2.BORDER_REPLICATE)
+        assert warped.shape == image.shape and warped.dtype == image.dtype
+        for k in range(3):
+            alone = warp_image(np.ascontiguousarray(image[:, :, k]), matrix, (83, 61), flags,
+                               cv2.BORDER_REPLICATE)
+            np.testing.assert_allclose(warped[:, :, k], alone, rtol=1e-6, atol=0)
+

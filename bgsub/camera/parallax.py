@@ -63,6 +63,13 @@ class ParallaxConfig:
     parallax_cell: int = setting(16, "the parallax field is the median of its cells (px) "
                                      "over 5 x 5 cells, which objects smaller than about two "
                                      "cells do not move", low=4, high=64)
+    parallax_keep: int = setting(10, "for this many frames after the last parallax field, "
+                                     "the camera fit keeps its plane (parallax_hold)", low=0)
+    parallax_hold: float = setting(0.7, "... the fit keeps the last frame's plane when that "
+                                        "plane's vectors are at least this share of the best "
+                                        "fit's inliers: the layers of a 3-D scene would "
+                                        "otherwise take turns as the camera's (0 = off)",
+                                   low=0, high=1)
 
     def __post_init__(self) -> None:
         check_settings(self)
@@ -108,6 +115,10 @@ def fit_epipole(anchors: np.ndarray, residual: np.ndarray, weights: np.ndarray, 
     return np.array([d[0], d[1], 0.0]), inliers
 
 
+#: A count of frames that is never within ``parallax_keep``: nothing seen yet.
+_LONG_AGO = 1 << 30
+
+
 class CameraPath:
     """Whether the parallax directions of the last frames describe one steady camera path:
     within ``degrees`` of each other over ``frames`` frames (an object's motion, or a fit's
@@ -148,6 +159,7 @@ class ParallaxField:
         self.epipole: Optional[np.ndarray] = None  # (3,) of the last field made
         self.edges: Optional[np.ndarray] = None  # (h, w) float32 of it: _depth_edges
         self.share = 0.0  # the share of the vectors' weight it explained, 0 without one
+        self.since = _LONG_AGO  # frames since the last field (0: the last frame had one)
 
     def discount_edges(self, score: np.ndarray, violation: Optional[np.ndarray]) -> None:
         """At the last field's depth edges, lower the background ``score`` ((h, w) float32) by
@@ -164,6 +176,11 @@ class ParallaxField:
         """Forget the scene's depths (a new shot)."""
         self.memory = None
         self.path.recent = []
+        self.since = _LONG_AGO
+
+    def standing(self) -> bool:
+        """Whether a field was made within the last ``parallax_keep`` frames: a 3-D scene."""
+        return self.since <= self.config.parallax_keep
 
     def estimate(self, points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
                  matrix: np.ndarray, shape: tuple, *,
@@ -173,6 +190,13 @@ class ParallaxField:
         ``points`` (previous frame) and ``disp`` with ``(N,)`` ``weights``; None when no
         parallax stands out (module docstring). ``foreground`` ((h, w) uint8, the last mask)
         keeps the depths the field remembers from learning an object's motion."""
+        field = self._estimate(points, disp, weights, matrix, shape, foreground=foreground)
+        self.since = 0 if field is not None else self.since + 1
+        return field
+
+    def _estimate(self, points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
+                  matrix: np.ndarray, shape: tuple, *,
+                  foreground: Optional[np.ndarray]) -> Optional[np.ndarray]:
         self.epipole = self.edges = None
         self.share = 0.0
         self._carry(matrix)

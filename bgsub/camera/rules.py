@@ -1,17 +1,19 @@
 """The camera stage's rules on a fitted motion: a motion seen on only a small region is an
 object's (:class:`SmallRegionRule`); motion too small to warp the model by is added to the next
-frame's (:class:`MotionHoldBack`)."""
+frame's (:class:`MotionHoldBack`); in a 3-D scene the fit keeps the plane it had
+(:func:`keep_plane`)."""
 
 from __future__ import annotations
 
 import dataclasses
+from typing import Any, Callable
 
 import numpy as np
 
 from bgsub.motion.global_motion import GlobalMotion, apply_homography, corner_distances
 from bgsub.motion.result import MotionResult
 
-__all__ = ["SMALL_REGION", "spans_frame", "SmallRegionRule", "MotionHoldBack",
+__all__ = ["SMALL_REGION", "spans_frame", "SmallRegionRule", "MotionHoldBack", "keep_plane",
            "largest_corner_shift", "shift_of", "translation"]
 
 
@@ -109,3 +111,30 @@ class MotionHoldBack:
             return np.eye(3)
         self.unapplied = np.eye(3)
         return total
+
+
+def keep_plane(fit: Callable[..., GlobalMotion], plane: np.ndarray, *, threshold: float,
+               share: float) -> Callable[..., GlobalMotion]:
+    """The camera ``fit(points, disp, weights, shape)`` made to keep the last frame's ``plane``
+    ((3, 3) float64): when the vectors that ``plane`` explains (within ``threshold`` px) are at
+    least ``share`` of the best fit's inliers and mostly not among them (another layer of the
+    scene won the vote), the fit is made to those vectors alone. Which layer is the plane
+    matters little to the parallax field that explains the others, but a plane that changes
+    from frame to frame breaks the field and the background model's warp."""
+
+    def kept(points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
+             shape: Any) -> GlobalMotion:
+        best = fit(points, disp, weights, shape)
+        if not best.ok:
+            return best
+        moved = apply_homography(plane, points) - points
+        on_plane = (np.hypot(*(disp - moved).T) <= threshold) & (weights > 0)
+        n = int(np.count_nonzero(on_plane))
+        if (n < share * np.count_nonzero(best.inliers)
+                or np.count_nonzero(best.inliers & on_plane) >= 0.5 * n):
+            return best
+        again = fit(points, disp, np.where(on_plane, weights, 0).astype(np.float32), shape)
+        return again if again.ok else best
+
+    return kept
+

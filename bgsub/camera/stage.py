@@ -21,7 +21,7 @@ import numpy as np
 from bgsub.camera.config import CameraConfig, CameraFit
 from bgsub.camera.known import KnownMotion, NoKnownMotion
 from bgsub.camera.registration import FrozenModelRegistration
-from bgsub.camera.rules import MotionHoldBack, SmallRegionRule
+from bgsub.camera.rules import MotionHoldBack, SmallRegionRule, keep_plane
 from bgsub.motion.result import MotionResult
 
 __all__ = ["CameraDecision", "CameraStage"]
@@ -64,13 +64,18 @@ class CameraStage:
         self.last_good = None
         self.hold_back.reset()
 
-    def fit_for(self, in_shape: tuple, shape: tuple) -> Tuple[Callable[..., Any],
-                                                               Optional[np.ndarray]]:
+    def fit_for(self, in_shape: tuple, shape: tuple, *,
+                hold: float = 0.0) -> Tuple[Callable[..., Any], Optional[np.ndarray]]:
         """``(fit, prior)`` for a frame of working ``shape`` (input frames of ``in_shape``): the
-        RANSAC fit and the last good motion, or the known motion as both."""
+        RANSAC fit and the last good motion, or the known motion as both. With ``hold`` > 0
+        (a 3-D scene), the fit keeps the last good motion's plane while its vectors are at
+        least that share of the best fit's inliers (:func:`~bgsub.camera.rules.keep_plane`)."""
         known = self.known.matrix(in_shape, shape)
         if known is not None:
             return KnownMotion.fit(known, self.config.ransac_threshold), known
+        if hold > 0 and self.last_good is not None:
+            return keep_plane(self.fit, self.last_good, threshold=self.config.ransac_threshold,
+                              share=hold), self.last_good
         return self.fit, self.last_good
 
     def decide(self, measured: MotionResult, gray: np.ndarray, model: Any, *,

@@ -346,16 +346,20 @@ class MovingCameraEngine(Engine):
     def _motion(self, cur: Any, gray: np.ndarray) -> MotionResult:
         """The motion stage: the front end's motion from the previous frame to ``cur``, while
         the second thread applies the last frame's update and prepares ``cur`` for the next
-        pair; over the region of interest's vectors only."""
-        fit, prior = self.camera.fit_for(self._in_shape, gray.shape)
+        pair; over the region of interest's vectors only. In a 3-D scene (a parallax field
+        lately) the fit keeps its plane (``parallax_hold``)."""
+        standing = self.parallax.standing()
+        fit, prior = self.camera.fit_for(
+            self._in_shape, gray.shape,
+            hold=self.parallax.config.parallax_hold if standing else 0.0)
+        fit = self._region.restrict_fit(fit)
         with self.thread.alongside(self._learn, lambda: self.frontend.prepare(cur)):
             if np.array_equal(gray, self.previous.gray):
                 # A repeated frame (a frame-rate conversion's duplicate, a paused stream): the
                 # camera did not move, whatever a noisy reading would say; a frozen model
                 # would otherwise drift by that reading's error.
                 return NO_MOTION
-            result = self.frontend.measure(self.previous.data, cur, prior=prior,
-                                           fit=self._region.restrict_fit(fit))
+            result = self.frontend.measure(self.previous.data, cur, prior=prior, fit=fit)
         if self.roi is None:  # (a region of interest given replaces the overlays' detection)
             self.overlays.observe(gray, result.points, result.disp, result.weights,
                                   camera_still=self.camera_still)

@@ -153,3 +153,20 @@ def test_at_the_band_edge_the_score_counts_less_and_the_motion_has_no_opinion():
     parallax.discount_edges(score, violation)
     assert score[168, 160] < 0.8 and score[40, 160] > 0.95
     assert abs(violation[168, 160] - 0.5) < 0.25 and violation[40, 160] > 0.9
+
+
+def test_a_3d_scene_stands_for_parallax_keep_frames_after_its_last_field():
+    parallax = ParallaxField(ParallaxConfig(parallax_keep=2))
+    assert not parallax.standing()
+    for k in range(4):
+        parallax.estimate(*_band_vectors(k), PAN, SHAPE)
+    assert parallax.standing()
+    flat = _band_vectors(9, band_speed=1.0)
+    standing = []
+    for _ in range(3):
+        assert parallax.estimate(*flat, PAN, SHAPE) is None
+        standing.append(parallax.standing())
+    assert standing == [True, True, False]
+    parallax.estimate(*_band_vectors(5), PAN, SHAPE)
+    parallax.restart()
+    assert not parallax.standing()

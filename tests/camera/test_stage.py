@@ -88,3 +88,47 @@ def test_without_a_known_motion_every_frame_is_fitted():
     stage.known.next_frame()
     assert stage.known.frames_past_end == 0
     assert stage.fit_for((100, 200), SHAPE) == (stage.fit, None)
+
+
+def _two_layers(near_share, seed=0):
+    """``(points, disp, weights)`` over a 200 x 100 frame: a far layer moving 2 px left and,
+    on ``near_share`` of the vectors (a band along the bottom), a near one moving 5 px left;
+    0.05 px of noise."""
+    rng = np.random.default_rng(seed)
+    ys, xs = np.mgrid[2:100:4, 2:200:4]
+    pts = np.stack([xs.ravel(), ys.ravel()], 1).astype(np.float32)
+    near = pts[:, 1] >= (1 - near_share) * 100
+    disp = np.where(near[:, None], [-5.0, 0.0], [-2.0, 0.0]).astype(np.float32)
+    disp += rng.normal(0, 0.05, disp.shape).astype(np.float32)
+    return pts, disp, np.ones(len(pts), np.float32), near
+
+
+def test_in_a_3d_scene_the_fit_keeps_the_plane_it_had():
+    # The far layer has the most vectors and wins a plain fit; the last frame's plane was the
+    # near band's, whose vectors are nearly as many: held, the fit stays on the band.
+    stage = CameraStage(CameraConfig(motion_model="translation"))
+    stage.decide(_measured(_shift(-5.0), ACROSS), GRAY, None, frozen=False)
+    pts, disp, wt, near = _two_layers(0.45)
+    plain = stage.fit(pts, disp, wt, SHAPE)
+    np.testing.assert_allclose(plain.matrix[0, 2], -2.0, atol=0.1)
+    fit, prior = stage.fit_for((100, 200), SHAPE, hold=0.7)
+    held = fit(pts, disp, wt, SHAPE)
+    assert held.ok
+    np.testing.assert_allclose(held.matrix[0, 2], -5.0, atol=0.1)
+    assert held.inliers[near].all() and not held.inliers[~near].any()
+    np.testing.assert_array_equal(prior, _shift(-5.0))
+
+
+def test_a_plane_with_too_few_vectors_is_not_kept():
+    stage = CameraStage(CameraConfig(motion_model="translation"))
+    stage.decide(_measured(_shift(-5.0), ACROSS), GRAY, None, frozen=False)
+    pts, disp, wt, _ = _two_layers(0.3)  # the band's vectors: 0.43 of the far layer's
+    held = stage.fit_for((100, 200), SHAPE, hold=0.7)[0](pts, disp, wt, SHAPE)
+    np.testing.assert_allclose(held.matrix[0, 2], -2.0, atol=0.1)
+
+
+def test_without_hold_the_fit_is_the_plain_one():
+    stage = CameraStage(CameraConfig())
+    stage.decide(_measured(_shift(-5.0), ACROSS), GRAY, None, frozen=False)
+    assert stage.fit_for((100, 200), SHAPE)[0] is stage.fit
+    assert stage.fit_for((100, 200), SHAPE, hold=0.0)[0] is stage.fit

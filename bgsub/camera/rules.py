@@ -137,4 +137,3 @@ def keep_plane(fit: Callable[..., GlobalMotion], plane: np.ndarray, *, threshold
         return again if again.ok else best
 
     return kept
-

@@ -348,10 +348,8 @@ class MovingCameraEngine(Engine):
         the second thread applies the last frame's update and prepares ``cur`` for the next
         pair; over the region of interest's vectors only. In a 3-D scene (a parallax field
         lately) the fit keeps its plane (``parallax_hold``)."""
-        standing = self.parallax.standing()
-        fit, prior = self.camera.fit_for(
-            self._in_shape, gray.shape,
-            hold=self.parallax.config.parallax_hold if standing else 0.0)
+        hold = self.parallax.config.parallax_hold if self.parallax.standing() else 0.0
+        fit, prior = self.camera.fit_for(self._in_shape, gray.shape, hold=hold)
         fit = self._region.restrict_fit(fit)
         with self.thread.alongside(self._learn, lambda: self.frontend.prepare(cur)):
             if np.array_equal(gray, self.previous.gray):

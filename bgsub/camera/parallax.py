@@ -29,6 +29,11 @@ from bgsub._util import cell_index
 from bgsub.motion.global_motion import apply_homography
 from bgsub.settings import check_settings, setting
 
+#: Near ground reaches across the view along the camera's motion; an object that moves ahead
+#: of the plane (overtaking the camera's motion) covers a compact part of it. The vectors ahead
+#: of the plane count as parallax (``parallax_near``) when they reach across this share of it.
+NEAR_REACH = 0.5
+
 __all__ = ["ParallaxConfig", "ParallaxField", "fit_epipole", "parallax_directions"]
 
 
@@ -42,6 +47,12 @@ class ParallaxConfig:
                                     "direction carry at least this share of the vectors' "
                                     "weight (a camera translating through a 3-D scene; 0 = "
                                     "homography only)", low=0, high=1)
+    parallax_near: float = setting(0.01, "... or when those that depart towards a nearer "
+                                         "layer (moving faster than the plane, in its "
+                                         "direction) carry this share and reach across half "
+                                         "the frame along the camera's motion: near ground "
+                                         "(0 = off)",
+                                   low=0, high=1)
     parallax_frames: int = setting(3, "... over this many frames in a row, in one direction "
                                       "(within parallax_angle): a steady camera path", low=1)
     parallax_angle: float = setting(15.0, "the parallax directions of those frames lie "
@@ -219,22 +230,35 @@ class ParallaxField:
         # The field must explain what the homography does not, once smoothed: objects, which
         # the cells' median leaves out, do not count.
         left = np.hypot(*(v.res - _read(field, v.now)).T) <= self.config.parallax_min
-        if v.share(v.big & left) < self.config.parallax:
+        if not self._enough(v, v.big & left):
             return None
         self.epipole, self.share = e, v.share(v.big & left)
         self.edges = _depth_edges(depths, shape, self.config.parallax_cell)
         return field
 
+    def _enough(self, v: "_Residuals", which: np.ndarray,
+                among: Optional[np.ndarray] = None) -> bool:
+        """Whether the vectors ``which`` (N,) bool (with ``among``, (M,) bool, those of them)
+        are parallax enough: ``parallax`` of the weight, or ``parallax_near`` in the vectors
+        that move ahead of the plane and reach across ``NEAR_REACH`` of the frame along its
+        motion. Near ground, ahead of the plane, may be a thin band of a flat scene; an object
+        that the camera follows lags behind the plane, and one that overtakes it is compact."""
+        c = self.config
+        if v.share(which, among) >= c.parallax:
+            return True
+        near = v.nearer[which] if among is None else v.nearer[which] & among
+        return (c.parallax_near > 0 and v.share(which, near) >= c.parallax_near
+                and v.reach(which, near) >= NEAR_REACH)
+
     def _direction(self, v: "_Residuals") -> tuple:
         """``(epipole (3,), along (M,) bool over the big residuals)`` of a steady camera path,
         or ``(None, None)``: too little parallax, or a direction of this frame's alone."""
-        c = self.config
-        if v.share(v.big) < c.parallax:
+        if not self._enough(v, v.big):
             self.path.forget()
             return None, None
         e, along = fit_epipole(v.anchors[v.big], v.res[v.big], v.weights[v.big],
-                               tolerance=c.parallax_tolerance, rng=self.rng)
-        if e is None or v.share(v.big, along) < c.parallax:
+                               tolerance=self.config.parallax_tolerance, rng=self.rng)
+        if e is None or not self._enough(v, v.big, along):
             self.path.forget()
             return None, None
         e = self.path.aligned(e)
@@ -310,7 +334,9 @@ class _Residuals:
     """A frame's vectors against the homography ``matrix`` (3, 3): ``anchors`` (N, 2), where
     it puts each of the ``points``; ``res`` (N, 2), what it leaves of the displacement
     ``disp``; ``now`` (N, 2), where each point is; ``ok`` (N,) bool, the usable ones; ``big``
-    (N,) bool, those that depart by more than ``least`` px."""
+    (N,) bool, those that depart by more than ``least`` px; ``nearer`` (N,) bool, those of them
+    that move further than the plane in its own direction (a layer nearer than the plane);
+    ``path`` (2,), the plane's mean displacement."""
 
     def __init__(self, points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
                  matrix: np.ndarray, least: float) -> None:
@@ -322,6 +348,9 @@ class _Residuals:
         size = np.hypot(self.res[:, 0], self.res[:, 1])
         self.ok = (self.weights > 0) & np.isfinite(size)
         self.big = self.ok & (size > least)
+        plane = self.anchors - pts
+        self.nearer = self.big & ((self.res * plane).sum(1) > 0)
+        self.path = plane[self.ok].mean(0) if self.ok.any() else np.zeros(2)
         self.total = max(float(self.weights[self.ok].sum()), 1e-12)
 
     def share(self, which: np.ndarray, among: Optional[np.ndarray] = None) -> float:
@@ -329,6 +358,18 @@ class _Residuals:
         ``among``, (M,) bool over ``which``'s vectors, those of them)."""
         w = self.weights[which] if among is None else self.weights[which][among]
         return float(w.sum()) / self.total
+
+    def reach(self, which: np.ndarray, among: Optional[np.ndarray] = None) -> float:
+        """How far the vectors ``which`` (as in :meth:`share`) reach along ``path``, as a share
+        of how far the usable vectors reach: 0 when the plane does not move."""
+        length = float(np.hypot(*self.path))
+        if length == 0.0:
+            return 0.0
+        at = self.now[which] if among is None else self.now[which][among]
+        along, every = at @ (self.path / length), self.now[self.ok] @ (self.path / length)
+        if not len(along):
+            return 0.0
+        return float(np.ptp(along)) / max(float(np.ptp(every)), 1e-12)
 
 
 def _depth_edges(depths: np.ndarray, shape: tuple, cell: int) -> np.ndarray:

@@ -20,14 +20,15 @@ def _grid(step=8):
     return np.stack([xs.ravel(), ys.ravel()], 1).astype(np.float64)
 
 
-def _band_vectors(seed, *, band_speed=2.0, object_box=None, object_disp=(0.0, 0.0)):
-    """``(points, disp, weights)``: the far layer moving by ``PAN``, the bottom 30 % of the
-    frame (a near band) ``band_speed`` times as fast, an object moving by ``object_disp`` in
-    ``object_box`` (x0, y0, x1, y1); 0.1 px of noise."""
+def _band_vectors(seed, *, band_speed=2.0, band_top=0.7, object_box=None,
+                  object_disp=(0.0, 0.0)):
+    """``(points, disp, weights)``: the far layer moving by ``PAN``, the frame below
+    ``band_top`` of its height (a near band) ``band_speed`` times as fast, an object moving by
+    ``object_disp`` in ``object_box`` (x0, y0, x1, y1); 0.1 px of noise."""
     rng = np.random.default_rng(seed)
     pts = _grid()
     disp = np.tile(PAN[:2, 2], (len(pts), 1))
-    disp[pts[:, 1] >= 0.7 * SHAPE[0]] *= band_speed
+    disp[pts[:, 1] >= band_top * SHAPE[0]] *= band_speed
     if object_box is not None:
         x0, y0, x1, y1 = object_box
         inside = (pts[:, 0] >= x0) & (pts[:, 0] < x1) & (pts[:, 1] >= y0) & (pts[:, 1] < y1)
@@ -36,9 +37,9 @@ def _band_vectors(seed, *, band_speed=2.0, object_box=None, object_disp=(0.0, 0.
     return pts, disp, np.ones(len(pts))
 
 
-def _field(frames, **vectors):
+def _field(frames, config=ParallaxConfig(), **vectors):
     """The field of the last of ``frames`` frames of the same vectors (a steady camera)."""
-    parallax = ParallaxField(ParallaxConfig())
+    parallax = ParallaxField(config)
     field = None
     for k in range(frames):
         pts, disp, wt = _band_vectors(k, **vectors)
@@ -67,6 +68,31 @@ def test_a_translating_camera_past_a_near_band_gives_the_band_its_parallax():
 def test_a_planar_scene_has_no_parallax():
     _, field = _field(4, band_speed=1.0, object_box=(40, 40, 100, 100), object_disp=(1.0, 2.0))
     assert field is None
+
+
+THIN = 0.94  # the bottom two rows of vectors: 7 % of them, less than the `parallax` share
+
+
+def test_a_thin_band_nearer_than_the_plane_is_parallax():
+    _, field = _field(4, band_top=THIN)
+    assert field is not None
+    np.testing.assert_allclose(np.median(field[232:, :, 0]), -2.0, atol=0.2)
+
+
+def test_a_thin_band_that_lags_behind_the_plane_is_not_parallax():
+    # (what an object the camera follows looks like: still in the image, the plane moving)
+    assert _field(4, band_top=THIN, band_speed=0.0)[1] is None
+    assert _field(4, band_top=THIN, band_speed=-1.0)[1] is None
+
+
+def test_a_compact_object_overtaking_the_plane_is_not_parallax():
+    box = (120, 40, 216, 136)  # 96 x 96 px: 6 % of the vectors, ahead of the plane
+    assert _field(4, band_speed=1.0, object_box=box, object_disp=(-4.0, 0.0))[1] is None
+
+
+def test_parallax_near_zero_leaves_a_thin_band_to_the_parallax_share():
+    assert _field(4, ParallaxConfig(parallax_near=0.0), band_top=THIN)[1] is None
+    assert _field(4, ParallaxConfig(parallax_near=0.0, parallax=0.05), band_top=THIN)[1] is not None
 
 
 def test_parallax_needs_a_steady_camera_path_over_frames():

@@ -2,11 +2,18 @@
 
 from __future__ import annotations
 
+import signal
 from pathlib import Path
 
 import pytest
 
 SHARED_DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+
+
+def pytest_configure(config) -> None:
+    # A suite started in the background by a script (`cmd &`, nohup) inherits Ctrl-C ignored,
+    # and Python then raises no KeyboardInterrupt: the tests of interrupted runs need it.
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 @pytest.fixture

@@ -72,8 +72,15 @@ class ForegroundConfig:
                                        "where that one is not blind (a slow pan drifts the "
                                        "never-warped model's fine texture into false "
                                        "foreground; 0 = no comparison)", low=0)
+    still_steady: float = setting(0.04, "the camera is not taken as still while its fitted "
+                                        "motion (the frame centre's) keeps one step of at "
+                                        "least 0.5 px over still_window frames, each within "
+                                        "this share of it: a pan, however much water or a "
+                                        "flat region scatters the vectors (0 = off)",
+                                  low=0, high=1)
     still_window: int = setting(9, "the still-camera tests (still_model, still_snr, "
-                                   "still_versus) are medians over this many frames", low=1)
+                                   "still_versus, still_steady) are medians over this many "
+                                   "frames", low=1)
     still_radius: float = setting(5.0, "the still-camera model's match radius (gray levels) "
                                        "at a pixel that holds still; it widens with the "
                                        "pixel's own usual distance to its samples "

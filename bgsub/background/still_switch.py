@@ -15,7 +15,8 @@ from bgsub.background.sample import SampleBackground
 from bgsub.motion.global_motion import apply_homography
 from bgsub.motion.result import MotionResult
 
-__all__ = ["motion_snr", "SAMPLE_SLACK", "BLIND_BEYOND", "StillCameraSwitch", "NoStillSwitch"]
+__all__ = ["motion_snr", "SAMPLE_SLACK", "BLIND_BEYOND", "STEADY_PX", "StillCameraSwitch",
+           "NoStillSwitch"]
 
 
 def motion_snr(result: MotionResult, *, min_vectors: int = 8) -> float:
@@ -44,6 +45,10 @@ def motion_snr(result: MotionResult, *, min_vectors: int = 8) -> float:
 #: The fraction of the compared pixels the sample model may call foreground beyond
 #: ``still_versus`` times the compensated model's (:class:`StillCameraSwitch`).
 SAMPLE_SLACK = 0.005
+#: A camera's motion is steady from frame to frame to a few hundredths of its size (pans: 1-3 %
+#: of a 1-2 px step); water's flow, read as a "motion", varies by 5-40 %. Steps under this
+#: many px are not judged: a still camera's readings scatter about zero.
+STEADY_PX = 0.5
 #: Gray levels: where the compensated model's decision threshold is wider (a spread of 30 at
 #: k_sigma 2; water, flicker), it is blind rather than right, and the still-camera switch does
 #: not compare the two models there.
@@ -57,6 +62,9 @@ class StillCameraSwitch:
 
     * the fitted motion is less than ``still_snr`` times the robust scatter of the motion
       vectors about it (:func:`motion_snr`): a shaking camera's motion is rigid however small;
+    * the fitted motion does not keep one step of at least :data:`STEADY_PX` over the window,
+      each frame's within ``steady`` of it (median): a pan over water or a flat region, whose
+      vectors scatter, is still a pan;
     * the sample model calls less than ``still_model`` of the frame foreground: a pan makes it
       fail;
     * of the pixels where the compensated model is not blind (its threshold within
@@ -70,11 +78,12 @@ class StillCameraSwitch:
     """
 
     def __init__(self, *, still_model: float, still_snr: float, window: int,
-                 still_versus: float = 0.0, radius: float = 20.0,
+                 still_versus: float = 0.0, steady: float = 0.0, radius: float = 20.0,
                  spread: float = 0.0) -> None:
         self.still_model = float(still_model)
         self.still_snr = float(still_snr)
         self.still_versus = float(still_versus)
+        self.steady = float(steady)
         self.window = max(int(window), 1)
         # Each pixel's radius: ``radius`` where it holds still, wider by ``spread`` times its
         # usual distance to its samples (0: one radius of 20 for all).
@@ -84,12 +93,14 @@ class StillCameraSwitch:
         # still_versus times the compensated model where that one is not blind) of the last
         # frames.
         self._votes: collections.deque = collections.deque(maxlen=self.window)
+        self._steps: collections.deque = collections.deque(maxlen=self.window)  # (2,) each
         self.camera_still = False
 
     def reset(self, frame: np.ndarray) -> None:
         """Start over from ``frame`` (a restart of the engine's model)."""
         self.model.reset(frame)
         self._votes.clear()
+        self._steps.clear()
         self.camera_still = False
 
     restart = reset  # (the engine's restart from a frame)
@@ -107,7 +118,8 @@ class StillCameraSwitch:
         frame, and its ``(h, w)`` score of it (None: no comparison with it)."""
         snr = motion_snr(result)
         snrs = [v[1] for v in self._votes] + [snr]
-        if fast_median(np.asarray(snrs[-self.window:], np.float64)) >= self.still_snr:
+        steady = self._steady(result, frame.shape)
+        if fast_median(np.asarray(snrs[-self.window:], np.float64)) >= self.still_snr or steady:
             # A rigid motion: the camera moves whatever the sample model says, so the frame is
             # not scored, and counts as one the sample model does not explain.
             self._votes.append((1.0, snr, 1.0))
@@ -126,6 +138,26 @@ class StillCameraSwitch:
         fraction, _, excess = np.median(np.array(self._votes), axis=0)
         self.camera_still = bool(fraction < self.still_model and excess <= SAMPLE_SLACK)
         return score if self.camera_still else None
+
+    def _steady(self, result: MotionResult, shape: tuple) -> bool:
+        """Record the fitted step of the ``(h, w)`` frame's centre (NaN without a fit) and say
+        whether the window's steps keep one of at least :data:`STEADY_PX`, the median frame's
+        within ``steady`` of it."""
+        step = np.full(2, np.nan)
+        if result.motion.ok:
+            h, w = shape[:2]
+            centre = np.array([[(w - 1) / 2.0, (h - 1) / 2.0]])
+            step = (apply_homography(result.motion.matrix, centre) - centre)[0]
+        self._steps.append(step)
+        if self.steady <= 0 or len(self._steps) < self.window:
+            return False
+        steps = np.array(self._steps)
+        if not np.isfinite(steps).all():
+            return False
+        typical = np.median(steps, axis=0)
+        size = float(np.hypot(*typical))
+        spread = float(np.median(np.hypot(*(steps - typical).T)))
+        return size >= STEADY_PX and spread <= self.steady * size
 
 
 def _foreground_fraction(score: np.ndarray, where: Optional[np.ndarray] = None) -> float:

@@ -193,6 +193,7 @@ class MovingCameraEngine(Engine):
         self.still_switch = (StillCameraSwitch(still_model=f.still_model, still_snr=f.still_snr,
                                                window=f.still_window,
                                                still_versus=f.still_versus,
+                                               steady=f.still_steady,
                                                radius=f.still_radius, spread=f.still_spread)
                              if f.still_model > 0 else NoStillSwitch())
         self.thread = SecondThread(overlap=self.config.overlap, name=self.name)

@@ -120,3 +120,37 @@ def test_the_background_image_is_the_still_models_while_the_camera_is_still():
     assert eng.camera_still
     assert np.array_equal(eng.get_background_image(),
                           eng.still_switch.model.background_image())
+
+
+# ------------------------------------------------------------------ a steady fit is a pan
+
+def _switch_after(steps, **kw):
+    """The still-camera switch after frames of one unchanging image whose vectors scatter like
+    water (no rigid motion stands out) while the fit moves the frame by each of ``steps``."""
+    from bgsub.background.still_switch import StillCameraSwitch
+    frame = np.full((60, 80, 3), 120, np.uint8)
+    switch = StillCameraSwitch(still_model=0.15, still_snr=4.0, window=9, **kw)
+    switch.reset(frame)
+    rng = np.random.default_rng(3)
+    for dx, dy in steps:
+        fit = np.array([[1, 0, dx], [0, 1, dy], [0, 0, 1]], float)
+        disp = np.array([dx, dy]) + rng.normal(0, 1.5, (60, 2))
+        switch.judge(frame, _result(disp, matrix=fit))
+    return switch
+
+
+def test_a_fit_that_keeps_one_step_is_a_pan_however_the_vectors_scatter():
+    rng = np.random.default_rng(4)
+    steps = np.array([1.2, 0.2]) * (1 + rng.normal(0, 0.01, (12, 1)))
+    assert not _switch_after(steps, steady=0.04).camera_still
+    assert _switch_after(steps, steady=0.0).camera_still  # (the test off)
+
+
+def test_a_flow_that_varies_from_frame_to_frame_is_no_pan():
+    rng = np.random.default_rng(5)
+    steps = np.array([2.3, -0.5]) * (1 + rng.normal(0, 0.25, (12, 1)))
+    assert _switch_after(steps, steady=0.04).camera_still
+
+
+def test_a_steady_step_under_half_a_pixel_is_not_judged():
+    assert _switch_after([(0.3, 0.0)] * 12, steady=0.04).camera_still

@@ -12,6 +12,7 @@ import numpy as np
 from bgsub._util import fast_median
 from bgsub.background.compensated import CompensatedBackground
 from bgsub.background.sample import SampleBackground
+from bgsub.camera.rules import shift_of
 from bgsub.motion.global_motion import apply_homography
 from bgsub.motion.result import MotionResult
 
@@ -143,12 +144,9 @@ class StillCameraSwitch:
         """Record the fitted step of the ``(h, w)`` frame's centre (NaN without a fit) and say
         whether the window's steps keep one of at least :data:`STEADY_PX`, the median frame's
         within ``steady`` of it."""
-        step = np.full(2, np.nan)
-        if result.motion.ok:
-            h, w = shape[:2]
-            centre = np.array([[(w - 1) / 2.0, (h - 1) / 2.0]])
-            step = (apply_homography(result.motion.matrix, centre) - centre)[0]
-        self._steps.append(step)
+        fitted = result.motion.ok
+        self._steps.append(shift_of(result.motion.matrix, shape)[:2, 2] if fitted
+                           else np.full(2, np.nan))
         if self.steady <= 0 or len(self._steps) < self.window:
             return False
         steps = np.array(self._steps)

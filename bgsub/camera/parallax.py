@@ -14,7 +14,9 @@ residuals along it into a per-pixel field of background displacement, ``(h, w, 2
 a parallax factor per cell, the median over cells (small objects leave it), remembered in the
 scene's coordinates (a static point keeps its depth from frame to frame; an object that moves
 along the parallax direction does not). Without enough parallax (a still or rotating camera, a
-planar scene) it returns None and the homography alone is the background's motion.
+planar scene) it returns None and the homography alone is the background's motion. A near
+layer that moves too far beyond the plane for the next frame's read is remembered for a second
+read (:mod:`bgsub.camera.near_layer`).
 """
 
 from __future__ import annotations
@@ -26,13 +28,9 @@ import cv2
 import numpy as np
 
 from bgsub._util import cell_index
+from bgsub.camera.near_layer import NEAR_REACH, NearLayer, leading_layer
 from bgsub.motion.global_motion import apply_homography
 from bgsub.settings import check_settings, setting
-
-#: Near ground reaches across the view along the camera's motion; an object that moves ahead
-#: of the plane (overtaking the camera's motion) covers a compact part of it. The vectors ahead
-#: of the plane count as parallax (``parallax_near``) when they reach across this share of it.
-NEAR_REACH = 0.5
 
 __all__ = ["ParallaxConfig", "ParallaxField", "fit_epipole", "parallax_directions"]
 
@@ -81,6 +79,13 @@ class ParallaxConfig:
                                         "fit's inliers: the layers of a 3-D scene would "
                                         "otherwise take turns as the camera's (0 = off)",
                                    low=0, high=1)
+    parallax_layer: float = setting(3.0, "a near layer (ahead of the plane, across half the "
+                                         "frame) that departs from the plane by at least "
+                                         "this many px is read a second time, pre-warped by "
+                                         "its motion, for parallax_keep frames after the "
+                                         "field that showed it: the finest level alone, "
+                                         "pre-warped by the plane, reads it wrong near the "
+                                         "edge of the model's 4 px range (0 = off)", low=0)
 
     def __post_init__(self) -> None:
         check_settings(self)
@@ -171,6 +176,8 @@ class ParallaxField:
         self.edges: Optional[np.ndarray] = None  # (h, w) float32 of it: _depth_edges
         self.share = 0.0  # the share of the vectors' weight it explained, 0 without one
         self.since = _LONG_AGO  # frames since the last field (0: the last frame had one)
+        self.layer: Optional[NearLayer] = None  # the last near layer seen ahead of the plane
+        self.layer_since = _LONG_AGO  # frames since it was seen
 
     def discount_edges(self, score: np.ndarray, violation: Optional[np.ndarray]) -> None:
         """At the last field's depth edges, lower the background ``score`` ((h, w) float32) by
@@ -187,7 +194,8 @@ class ParallaxField:
         """Forget the scene's depths (a new shot)."""
         self.memory = None
         self.path.recent = []
-        self.since = _LONG_AGO
+        self.since = self.layer_since = _LONG_AGO
+        self.layer = None
 
     def standing(self) -> bool:
         """Whether a field was made within the last ``parallax_keep`` frames: a 3-D scene."""
@@ -203,7 +211,21 @@ class ParallaxField:
         keeps the depths the field remembers from learning an object's motion."""
         field = self._estimate(points, disp, weights, matrix, shape, foreground=foreground)
         self.since = 0 if field is not None else self.since + 1
+        layer = None if field is None else leading_layer(field, matrix,
+                                                         least=self.config.parallax_min)
+        self.layer_since = 0 if layer is not None else self.layer_since + 1
+        self.layer = layer or self.layer
         return field
+
+    def layer_to_read(self) -> Optional[NearLayer]:
+        """The near layer the next frame is read for a second time (:mod:`~bgsub.camera.near_layer`): the
+        last one seen, within ``parallax_keep`` frames, when it departs from the plane by at
+        least ``parallax_layer`` px; else None."""
+        c, layer = self.config, self.layer
+        if (layer is None or c.parallax_layer == 0 or self.layer_since > c.parallax_keep
+                or float(np.hypot(*layer.shift)) < c.parallax_layer):
+            return None
+        return layer
 
     def _estimate(self, points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
                   matrix: np.ndarray, shape: tuple, *,

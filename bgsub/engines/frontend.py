@@ -16,6 +16,9 @@ and may provide
   done in the engine's second thread while this pair is measured (``overlap=1``);
 * :meth:`~MotionFrontEnd.check_size` ``(gray)``: refuse, on the first frame, a stream it cannot
   read at all;
+* :meth:`~MotionFrontEnd.read_layer` ``(prev, cur, result, *, prior, layer, fit)``: read the pair
+  again for a near layer of a 3-D scene that moves beyond its reach from ``prior`` (default:
+  ``result`` as it is);
 * :meth:`~MotionFrontEnd.flow_colour` ``(shape)``: a picture of the last measured motion for
   ``debug_image``.
 
@@ -46,6 +49,7 @@ from typing import Any, ClassVar, Dict, Mapping, Optional, Tuple
 import numpy as np
 
 from bgsub.camera.config import CameraFit
+from bgsub.camera.near_layer import NearLayer
 from bgsub.motion.result import NO_MOTION, MotionResult
 from bgsub.settings import Param, config_params
 
@@ -103,6 +107,13 @@ class MotionFrontEnd(ABC):
     def prepare(self, data: Any) -> None:
         """Work on a frame that only the *next* pair needs (it is that pair's first frame),
         done in place on ``data`` while this frame's motion is measured."""
+
+    def read_layer(self, prev: Any, cur: Any, result: MotionResult, *, prior: np.ndarray,
+                   layer: NearLayer, fit: CameraFit) -> MotionResult:
+        """``result`` (what :meth:`measure` found from ``prior``) with the vectors of a second
+        read, pre-warped by ``layer.prior(prior)``, where they read the near ``layer`` better
+        (:mod:`bgsub.camera.near_layer`); by default ``result`` itself."""
+        return result
 
     def check_size(self, gray: np.ndarray) -> None:
         """Raise :class:`~bgsub.errors.InputError` when frames of ``gray``'s (working) size

@@ -348,7 +348,8 @@ class MovingCameraEngine(Engine):
         """The motion stage: the front end's motion from the previous frame to ``cur``, while
         the second thread applies the last frame's update and prepares ``cur`` for the next
         pair; over the region of interest's vectors only. In a 3-D scene (a parallax field
-        lately) the fit keeps its plane (``parallax_hold``)."""
+        lately) the fit keeps its plane (``parallax_hold``), and a near layer that moves beyond
+        the read's reach is read again (``parallax_layer``)."""
         hold = self.parallax.config.parallax_hold if self.parallax.standing() else 0.0
         fit, prior = self.camera.fit_for(self._in_shape, gray.shape, hold=hold)
         fit = self._region.restrict_fit(fit)
@@ -359,6 +360,10 @@ class MovingCameraEngine(Engine):
                 # would otherwise drift by that reading's error.
                 return NO_MOTION
             result = self.frontend.measure(self.previous.data, cur, prior=prior, fit=fit)
+            layer = self.parallax.layer_to_read()
+            if layer is not None and prior is not None:
+                result = self.frontend.read_layer(self.previous.data, cur, result,
+                                                  prior=prior, layer=layer, fit=fit)
         if self.roi is None:  # (a region of interest given replaces the overlays' detection)
             self.overlays.observe(gray, result.points, result.disp, result.weights,
                                   camera_still=self.camera_still)

@@ -13,6 +13,7 @@ from typing import Any, Dict, NamedTuple, Optional
 
 import numpy as np
 
+from bgsub.camera.near_layer import NearLayer
 from bgsub.engines.base import Param
 from bgsub.engines.frontend import CameraFit, MotionFrontEnd, MotionResult
 from bgsub.errors import InputError
@@ -222,6 +223,27 @@ class GrbmFrontEnd(MotionFrontEnd):
         self.last_flow = best.flow
         return _result(best)
 
+    def read_layer(self, prev: FramePyramid, cur: FramePyramid, result: MotionResult, *,
+                   prior: np.ndarray, layer: NearLayer, fit: CameraFit) -> MotionResult:
+        """The reduced pyramid read again, pre-warped by ``layer.prior(prior)``: inside the
+        layer's region each patch keeps the read of the higher confidence, and the camera is
+        fitted again to the merged vectors. ``result`` as it is when the reduced pyramid is
+        off, the second read takes no patch or that fit fails."""
+        levels = self._reduced_levels()
+        first = self.last_flow
+        if not levels or first is None:
+            return result
+        second = self.read(prev, cur, layer.prior(prior), finest=self.flow.finest, fit=fit,
+                           levels=levels).flow
+        merged = _merged(first, second, where=layer.covers(first.centres))
+        if merged is None:
+            return result
+        reading = self._refit(merged, prev, cur, fit) or _fitted(merged, None, fit, cur.shape)
+        if not reading.motion.ok:
+            return result
+        self.last_flow = reading.flow
+        return _result(reading)
+
     def _reduced(self, prev: FramePyramid, cur: FramePyramid, prior: Optional[np.ndarray],
                  fit: CameraFit) -> Optional[Reading]:
         """The readout of the reduced pyramid (``prior_levels``, pre-warped by ``prior``) when
@@ -320,6 +342,28 @@ def _fitted(flow: FlowEstimate, refined: Optional[np.ndarray], fit: CameraFit,
     used = max(int(np.count_nonzero(flow.weights > 0)), 1)
     return Reading(flow, motion, motion.n_inliers / used if motion.ok else 0.0, refined,
                    settled=refined is not None)
+
+
+def _merged(first: FlowEstimate, second: FlowEstimate, *,
+            where: np.ndarray) -> Optional[FlowEstimate]:
+    """``first`` with the patches ``where`` ((N,) bool) that ``second`` (the same grid read
+    with another pre-warp) read with more confidence, or where only it read them, taken from
+    it; None when the grids differ or it reads no patch better."""
+    if (second.centres.shape != first.centres.shape
+            or not np.allclose(second.centres, first.centres)):
+        return None
+    take = where & second.valid & (~first.valid | (second.confidence > first.confidence))
+    if not take.any():
+        return None
+
+    def pick(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        return np.where(take.reshape((-1,) + (1,) * (a.ndim - 1)), a, b)
+
+    return dataclasses.replace(
+        first, disp=pick(second.disp, first.disp), valid=first.valid | take,
+        confidence=pick(second.confidence, first.confidence),
+        residual=pick(second.residual, first.residual),
+        beyond=None if first.beyond is None else first.beyond & ~take)
 
 
 def _result(reading: Reading) -> MotionResult:

@@ -1,0 +1,91 @@
+"""A near layer of a 3-D scene that moves beyond the reduced read's reach.
+
+The front end reads a frame on its finest level alone, pre-warped by the camera's last motion
+(``prior_levels``). A camera translating past near ground moves that ground several pixels a
+frame faster than the plane the fit follows. Beyond the gated RBM's range (it is trained on
+shifts up to 4 px) the finest level reads the ground wrong, near the plane's motion, and the
+parallax field that explained it dies: the ground becomes foreground.
+
+:func:`leading_layer` finds, in a frame's parallax field, the layer that moves ahead of the plane
+across the frame (near ground, not an object: see ``NEAR_REACH``). For the next frames the
+engine reads the frame a second time, pre-warped by the plane followed by that layer's shift,
+and inside the layer's region keeps the second read's vectors where they read with more
+confidence (:meth:`~bgsub.engines.frontend.MotionFrontEnd.read_layer`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+
+__all__ = ["NEAR_REACH", "NearLayer", "leading_layer"]
+
+#: Near ground reaches across the view along the camera's motion; an object that moves ahead
+#: of the plane (overtaking the camera's motion) covers a compact part of it. A layer ahead of
+#: the plane is near ground when it reaches across this share of the view.
+NEAR_REACH = 0.5
+#: A layer is looked for only when the field departs from the plane (by ``parallax_min``) over
+#: more than this share of the frame.
+LAYER_COVER = 0.05
+#: The field is looked at every STEP px: it is smooth over its cells (``parallax_cell``).
+STEP = 4
+
+
+@dataclass(frozen=True)
+class NearLayer:
+    """A layer nearer than the camera's plane: its ``shift`` ((2,) float64 px a frame beyond
+    the plane's motion) and its ``region`` ((h // STEP, w // STEP) bool, current-frame pixels
+    every ``STEP``: where the field departs along the shift by at least half of it)."""
+
+    shift: np.ndarray
+    region: np.ndarray
+
+    def prior(self, plane: np.ndarray) -> np.ndarray:
+        """``(3, 3) float64``: the motion ``plane`` (3, 3) followed by the layer's shift."""
+        ahead = np.eye(3)
+        ahead[:2, 2] = self.shift
+        return ahead @ np.asarray(plane, np.float64)
+
+    def covers(self, points: np.ndarray) -> np.ndarray:
+        """``(N,) bool``: which of the ``(N, 2)`` points (x, y) lie in the layer's region."""
+        h, w = self.region.shape
+        xy = np.floor(np.asarray(points, np.float64) / STEP).astype(np.intp)
+        inside = (xy[:, 0] >= 0) & (xy[:, 0] < w) & (xy[:, 1] >= 0) & (xy[:, 1] < h)
+        out = np.zeros(len(xy), bool)
+        out[inside] = self.region[xy[inside, 1], xy[inside, 0]]
+        return out
+
+
+def leading_layer(field: np.ndarray, matrix: np.ndarray, *,
+                  least: float) -> Optional[NearLayer]:
+    """The layer that departs most from the plane in a parallax ``field`` ((h, w, 2) float32),
+    when it moves ahead of the camera's ``matrix`` ((3, 3): further in the plane's own
+    direction, as nearer ground does) and reaches across ``NEAR_REACH`` of the view along it;
+    None otherwise. Its shift is the field's median over the upper half of the departures
+    beyond ``least`` px. A subject the camera follows departs the other way (it lags behind
+    the plane), and one that overtakes the plane is compact."""
+    field = field[STEP // 2::STEP, STEP // 2::STEP]
+    size = np.hypot(field[..., 0], field[..., 1])
+    big = size > least
+    if np.count_nonzero(big) <= LAYER_COVER * size.size:
+        return None
+    top = size >= np.percentile(size[big], 50)
+    shift = np.median(field[top], axis=0).astype(np.float64)
+    path = np.asarray(matrix, np.float64)[:2, 2]
+    if float(shift @ path) <= 0 or _reach(top, path) < NEAR_REACH:
+        return None
+    along = field[..., 0] * shift[0] + field[..., 1] * shift[1]
+    return NearLayer(shift, along >= 0.5 * float(shift @ shift))
+
+
+def _reach(where: np.ndarray, path: np.ndarray) -> float:
+    """How far the pixels ``where`` ((h, w) bool) reach along ``path`` ((2,) px), as a share of
+    the view's extent in that direction (the 5th to the 95th percentile of their positions)."""
+    u = path / max(float(np.hypot(*path)), 1e-12)
+    ys, xs = np.nonzero(where)
+    along = xs * u[0] + ys * u[1]
+    h, w = where.shape
+    lo, hi = np.percentile(along, [5, 95])
+    return float(hi - lo) / (abs(u[0]) * w + abs(u[1]) * h)

@@ -1,0 +1,119 @@
+"""A near layer beyond the reduced read's reach (bgsub.camera.near_layer): found in a parallax
+field with exact answers, and read a second time by the engine on a two-layer scene."""
+
+import cv2
+import numpy as np
+import pytest
+from helpers import random_texture
+
+from bgsub import create_engine
+from bgsub.camera.near_layer import leading_layer
+from bgsub.camera.parallax import ParallaxConfig, ParallaxField
+
+SHAPE = (240, 320)  # (h, w)
+PAN = np.array([[1.0, 0.0, -2.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])  # the far layer's motion
+
+
+def _band_field(departure, *, top=168, x0=0, x1=SHAPE[1]):
+    """``(h, w, 2) float32``: a field that moves rows from ``top`` down, columns ``x0:x1``,
+    by ``departure`` (dx, dy) beyond the plane, and leaves the rest on it."""
+    field = np.zeros(SHAPE + (2,), np.float32)
+    field[top:, x0:x1] = departure
+    return field
+
+
+def test_a_band_ahead_of_the_plane_is_a_near_layer_with_its_shift_and_region():
+    layer = leading_layer(_band_field((-4.0, 0.0)), PAN, least=0.75)
+    assert layer is not None
+    assert np.allclose(layer.shift, (-4.0, 0.0))
+    band, far = np.mgrid[172:240:4, 0:320:4], np.mgrid[0:164:4, 0:320:4]
+    assert layer.covers(band[::-1].reshape(2, -1).T).all()
+    assert not layer.covers(far[::-1].reshape(2, -1).T).any()
+    assert not layer.covers(np.array([[-5.0, 200.0], [400.0, 200.0]])).any()  # outside
+    assert np.allclose(layer.prior(PAN)[:2, 2], (-6.0, 0.0))  # the plane, then the shift
+
+
+def test_a_band_lagging_behind_the_plane_is_no_near_layer():
+    # (what a subject the camera follows looks like: it departs against the pan)
+    assert leading_layer(_band_field((4.0, 0.0)), PAN, least=0.75) is None
+
+
+def test_a_compact_region_ahead_of_the_plane_is_no_near_layer():
+    # (an object overtaking the camera's motion, 96 px of the 320 px view)
+    assert leading_layer(_band_field((-4.0, 0.0), top=100, x0=100, x1=196),
+                         PAN, least=0.75) is None
+
+
+def _band_vectors(seed, band_speed):
+    """``(points, disp, weights)``: the far layer moving by ``PAN``, the frame's bottom 30 %
+    ``band_speed`` times as fast; 0.1 px of noise."""
+    rng = np.random.default_rng(seed)
+    ys, xs = np.mgrid[4:SHAPE[0]:8, 4:SHAPE[1]:8]
+    pts = np.stack([xs.ravel(), ys.ravel()], 1).astype(np.float64)
+    disp = np.tile(PAN[:2, 2], (len(pts), 1))
+    disp[pts[:, 1] >= 0.7 * SHAPE[0]] *= band_speed
+    return pts, disp + rng.normal(0, 0.1, disp.shape), np.ones(len(pts))
+
+
+def _after(frames, band_speed, config=ParallaxConfig()):
+    parallax = ParallaxField(config)
+    for k in range(frames):
+        parallax.estimate(*_band_vectors(k, band_speed), PAN, SHAPE)
+    return parallax
+
+
+def test_only_a_layer_that_departs_by_parallax_layer_px_is_read_again():
+    assert _after(4, band_speed=3.0).layer_to_read() is not None  # 4 px beyond the plane
+    assert _after(4, band_speed=2.0).layer_to_read() is None  # 2 px: the read reaches it
+    assert _after(4, 3.0, ParallaxConfig(parallax_layer=0)).layer_to_read() is None  # off
+
+
+def test_the_layer_is_read_again_for_parallax_keep_frames_after_it_was_seen():
+    parallax = _after(4, 3.0, ParallaxConfig(parallax_keep=2))
+    flat = _band_vectors(9, band_speed=1.0)
+    read = []
+    for _ in range(3):
+        parallax.estimate(*flat, PAN, SHAPE)
+        read.append(parallax.layer_to_read() is not None)
+    assert read == [True, True, False]
+    parallax.restart()
+    assert parallax.layer is None
+
+
+def _two_layer_clip(n, *, far=2.0, near=8.0, top=172):
+    """``n`` BGR frames (240 x 320) of a camera translating past near ground: the view's rows
+    from ``top`` down move ``near`` px a frame, the rest ``far`` (4x as fast: 6 px beyond the
+    plane, out of the model's reach from it)."""
+    h, w = SHAPE
+    rng = np.random.default_rng(0)
+    layers = [(random_texture(h, w + int(v * n) + 16, seed=s), v)
+              for s, v in ((1, far), (2, near))]
+    frames = []
+    for k in range(n):
+        views = [cv2.warpAffine(tex, np.float32([[1, 0, -v * k], [0, 1, 0]]), (w, h),
+                                flags=cv2.INTER_LINEAR) for tex, v in layers]
+        img = np.where(np.arange(h)[:, None] >= top, views[1], views[0]).astype(np.float64)
+        img = np.clip(img + rng.normal(0, 1.5, img.shape), 0, 255).astype(np.uint8)
+        frames.append(cv2.cvtColor(img, cv2.COLOR_GRAY2BGR))
+    return frames
+
+
+@pytest.fixture(scope="module")
+def two_layer_clip():
+    return _two_layer_clip(60)
+
+
+def _ground_foreground(frames, **params):
+    """The share of the near ground's pixels (below row 176) called foreground over the
+    second half of ``frames``."""
+    engine = create_engine("grbm", lookback=0, **params)
+    shares = [(engine.apply(f) > 0)[176:].mean() for f in frames]
+    return float(np.mean(shares[len(frames) // 2:]))
+
+
+def test_near_ground_beyond_the_reads_reach_stays_background(two_layer_clip):
+    assert _ground_foreground(two_layer_clip) < 0.05
+
+
+def test_without_the_second_read_the_near_ground_is_foreground(two_layer_clip):
+    assert _ground_foreground(two_layer_clip, parallax_layer=0) > 0.5

@@ -218,9 +218,9 @@ class ParallaxField:
         return field
 
     def layer_to_read(self) -> Optional[NearLayer]:
-        """The near layer the next frame is read for a second time (:mod:`~bgsub.camera.near_layer`): the
-        last one seen, within ``parallax_keep`` frames, when it departs from the plane by at
-        least ``parallax_layer`` px; else None."""
+        """The near layer the next frame is read for a second time
+        (:mod:`~bgsub.camera.near_layer`): the last one seen, within ``parallax_keep`` frames,
+        when it departs from the plane by at least ``parallax_layer`` px; else None."""
         c, layer = self.config, self.layer
         if (layer is None or c.parallax_layer == 0 or self.layer_since > c.parallax_keep
                 or float(np.hypot(*layer.shift)) < c.parallax_layer):

@@ -11,7 +11,9 @@ changed and the vectors elsewhere agree on one motion (a camera that moves, not 
 a textured pixel that is the same (within ``overlay_noise`` gray levels) as ``overlay_lag``
 frames before in at least ``overlay`` of such frames, or whose edge stays sharp in their running
 mean (a semi-transparent watermark), where the vectors read no motion at all (a subject the
-camera follows reads its wander). The engine then leaves the overlay's vectors out of the fit
+camera follows reads its wander). Black bars along the frame's edges (letterbox, pillarbox) are
+flat, with no textured pixel: :class:`~bgsub.background.bars.BlackBars` finds them by their black
+rows and columns, in every frame where the camera moved. The engine then leaves the overlay's vectors out of the fit
 and the evidence, calls no foreground there and keeps no history of it in the model
 (``CompensatedBackground.forget``).
 """
@@ -25,6 +27,7 @@ from typing import Any, Optional, Tuple
 import cv2
 import numpy as np
 
+from bgsub.background.bars import BlackBars
 from bgsub.background.evidence import cell_index, cells_to_pixels
 from bgsub.background.morphology import kernel
 from bgsub.settings import check_settings, setting
@@ -110,6 +113,8 @@ class OverlayDetector:
         self._frames = 0  # informative frames
         self._travelled = 0.0  # px the camera moved over them
         self._still: Optional[np.ndarray] = None  # (gh, gw) float32: cells' vector motion
+        self._found: Optional[np.ndarray] = None  # (h, w) bool: the textured overlays
+        self._bars = BlackBars()  # letterbox and pillarbox bars (flat: no pixel is textured)
         self.mask = None
 
     @property
@@ -128,6 +133,11 @@ class OverlayDetector:
         if len(self._history) == self._history.maxlen and not camera_still:
             self._learn(blurred, self._history[0], points, disp, weights)
         self._history.append(blurred)
+        if not camera_still:  # (as the textured ones: a still camera drags nothing)
+            self._bars.observe(gray)
+        bars = self._bars.mask(gray.shape, frames=self.config.overlay_frames, grow=GROW_PX)
+        self.mask = self._found if bars is None else (
+            bars if self._found is None else bars | self._found)
 
     def _learn(self, cur: np.ndarray, old: np.ndarray, points: np.ndarray, disp: np.ndarray,
                weights: np.ndarray) -> None:
@@ -163,7 +173,7 @@ class OverlayDetector:
             found |= self._sharp_in_mean()
         found &= self._motionless(cur.shape)
         grown = _grown(found) if found.any() else None
-        self.mask = grown if grown is not None and grown.any() else None
+        self._found = grown if grown is not None and grown.any() else None
 
     def _learn_cells(self, points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
                      shape: tuple) -> None:

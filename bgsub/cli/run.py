@@ -208,9 +208,9 @@ def _input_notes(args: argparse.Namespace, source: FrameSource, engine: Any) -> 
     box = getattr(engine, "overlay_box", None)
     if box:
         x, y, w, h = box
-        common.note(f"frame-fixed overlays (a logo, a watermark, a timestamp) found within "
-                    f"{w}x{h} at ({x}, {y}): taken as background; --roi chooses the watched "
-                    "region instead", quiet=args.quiet)
+        common.note(f"frame-fixed overlays (a logo, a watermark, a timestamp, black bars) "
+                    f"found within {w}x{h} at ({x}, {y}): taken as background; --roi chooses "
+                    "the watched region instead", quiet=args.quiet)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -32,6 +32,9 @@ from bgsub.camera.near_layer import NEAR_REACH, NearLayer, leading_layer
 from bgsub.motion.global_motion import apply_homography
 from bgsub.settings import check_settings, setting
 
+#: A post's cells depart from the 5 x 5 median by more than this (px of parallax).
+POST_GAP = 0.5
+
 __all__ = ["ParallaxConfig", "ParallaxField", "fit_epipole", "parallax_directions"]
 
 
@@ -72,6 +75,12 @@ class ParallaxConfig:
     parallax_cell: int = setting(16, "the parallax field is the median of its cells (px) "
                                      "over 5 x 5 cells, which objects smaller than about two "
                                      "cells do not move", low=4, high=64)
+    parallax_posts: float = setting(0.4, "a line of cells across the camera's path (a column, "
+                                         "for a camera moving sideways) whose 5 x 1 median "
+                                         "departs from the 5 x 5 one by more than POST_GAP px "
+                                         "over at least this share of its cells is a post at "
+                                         "another depth: those cells take this frame's 5 x 1 "
+                                         "depths (0 = off)", low=0, high=1)
     parallax_keep: int = setting(10, "for this many frames after the last parallax field, "
                                      "the camera fit keeps its plane (parallax_hold)", low=0)
     parallax_hold: float = setting(0.7, "... the fit keeps the last frame's plane when that "
@@ -246,8 +255,12 @@ class ParallaxField:
         u = parallax_directions(e, v.anchors[static])
         gamma = (v.res[static] * u).sum(1) / np.maximum((u * u).sum(1), 1e-12)
         # Where each point is now: the field is read at the current frame's pixels.
-        cells = self._gamma_grid(v.now[static], gamma, v.weights[static], shape)
+        grid = self._gamma_grid(v.now[static], gamma, v.weights[static], shape)
+        cells = cv2.medianBlur(grid, 5)
+        posts, own = _posts(grid, cells, e, share=self.config.parallax_posts)
         depths = self._remember(cells, foreground)
+        if posts is not None:
+            depths = np.where(posts, own, depths).astype(np.float32)
         field = self._field(depths, e, shape)
         # The field must explain what the homography does not, once smoothed: objects, which
         # the cells' median leaves out, do not count.
@@ -329,7 +342,7 @@ class ParallaxField:
     def _gamma_grid(self, at: np.ndarray, gamma: np.ndarray, wt: np.ndarray,
                     shape: tuple) -> np.ndarray:
         """``(gh, gw) float32``: the parallax factor per cell, a weighted mean, gaps filled from
-        the neighbours, then the median of 5 x 5 cells."""
+        the neighbours."""
         cell = self.config.parallax_cell
         cells, (gh, gw) = cell_index(at, shape, cell)
         num = np.bincount(cells, wt * gamma, minlength=gh * gw).reshape(gh, gw)
@@ -339,8 +352,7 @@ class ParallaxField:
         wide_n = cv2.blur(num, (7, 7), borderType=cv2.BORDER_REPLICATE)
         wide_d = cv2.blur(den, (7, 7), borderType=cv2.BORDER_REPLICATE)
         fill = np.where(wide_d > 0, wide_n / np.maximum(wide_d, 1e-9), 0).astype(np.float32)
-        grid = np.where(den > 0, grid, fill).astype(np.float32)
-        return cv2.medianBlur(grid, 5)
+        return np.where(den > 0, grid, fill).astype(np.float32)
 
     def _field(self, grid: np.ndarray, e: np.ndarray, shape: tuple) -> np.ndarray:
         """``(h, w, 2) float32``: the cells' parallax factors ``grid`` (gh, gw) interpolated to
@@ -392,6 +404,29 @@ class _Residuals:
         if not len(along):
             return 0.0
         return float(np.ptp(along)) / max(float(np.ptp(every)), 1e-12)
+
+
+def _posts(grid: np.ndarray, cells: np.ndarray, epipole: np.ndarray, *,
+           share: float) -> tuple:
+    """``(posts (gh, gw) bool, depths (gh, gw) float32)`` or ``(None, None)``: the cells of
+    the lines across the camera's path (columns for a camera moving sideways, along the
+    ``epipole`` (3,) at infinity) where the median of 5 cells along the line departs from the
+    5 x 5 median ``cells`` by more than ``POST_GAP`` over at least ``share`` of the line, and
+    that median. A post 13-28 px wide is lost in the 5 x 5 median of 16 px cells, and it moves
+    against the plane, so it slides off depths remembered in the plane's coordinates: its
+    cells take this frame's depths along the line."""
+    if share == 0:
+        return None, None
+    sideways = abs(float(epipole[0])) >= abs(float(epipole[1]))
+    flip = (lambda a: a) if sideways else np.transpose
+    g, c = flip(grid), flip(cells)
+    padded = np.pad(g, ((2, 2), (0, 0)), mode="edge")
+    own = np.median(np.stack([padded[i:i + g.shape[0]] for i in range(5)]), axis=0)
+    departs = np.abs(own - c) > POST_GAP
+    posts = departs & (departs.mean(axis=0) >= share)[None, :]
+    if not posts.any():
+        return None, None
+    return flip(posts), flip(own).astype(np.float32)
 
 
 def _depth_edges(depths: np.ndarray, shape: tuple, cell: int) -> np.ndarray:

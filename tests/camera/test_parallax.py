@@ -196,3 +196,12 @@ def test_a_3d_scene_stands_for_parallax_keep_frames_after_its_last_field():
     parallax.estimate(*_band_vectors(5), PAN, SHAPE)
     parallax.restart()
     assert not parallax.standing()
+
+
+def test_a_post_across_the_camera_path_keeps_its_own_parallax():
+    # (a 32 px post, nearer than the far layer: 1.8 times its motion, over the frame's height)
+    post = dict(object_box=(148, 0, 180, SHAPE[0]), object_disp=(-3.6, 0.0))
+    _, field = _field(4, **post)
+    _, plain = _field(4, ParallaxConfig(parallax_posts=0), **post)
+    assert abs(field[60, 164, 0] + 1.6) < 0.4  # its departure from the plane
+    assert abs(plain[60, 164, 0]) < 0.4  # lost in the 5 x 5 median

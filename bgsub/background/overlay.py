@@ -13,9 +13,9 @@ frames before in at least ``overlay`` of such frames, or whose edge stays sharp 
 mean (a semi-transparent watermark), where the vectors read no motion at all (a subject the
 camera follows reads its wander). Black bars along the frame's edges (letterbox, pillarbox) are
 flat, with no textured pixel: :class:`~bgsub.background.bars.BlackBars` finds them by their black
-rows and columns, in every frame where the camera moved. The engine then leaves the overlay's vectors out of the fit
-and the evidence, calls no foreground there and keeps no history of it in the model
-(``CompensatedBackground.forget``).
+rows and columns, in every frame where the camera moved. The engine then leaves the overlay's
+vectors out of the fit and the evidence, calls no foreground there and keeps no history of it in
+the model (``CompensatedBackground.forget``).
 """
 
 from __future__ import annotations

@@ -11,6 +11,10 @@ across the frame (near ground, not an object: see ``NEAR_REACH``). For the next 
 engine reads the frame a second time, pre-warped by the plane followed by that layer's shift,
 and inside the layer's region keeps the second read's vectors where they read with more
 confidence (:meth:`~bgsub.engines.frontend.MotionFrontEnd.read_layer`).
+
+A layer read wrong from the start leaves no field to find it in: its vectors scatter off the
+plane. :func:`probed_layer` then guesses, from those scattered vectors alone, a layer that moves
+twice as fast as the plane, and the frame is read a second time for it.
 """
 
 from __future__ import annotations
@@ -20,7 +24,9 @@ from typing import Optional
 
 import numpy as np
 
-__all__ = ["NEAR_REACH", "NearLayer", "leading_layer"]
+from bgsub.motion.global_motion import apply_homography
+
+__all__ = ["NEAR_REACH", "NearLayer", "leading_layer", "probed_layer"]
 
 #: Near ground reaches across the view along the camera's motion; an object that moves ahead
 #: of the plane (overtaking the camera's motion) covers a compact part of it. A layer ahead of
@@ -31,16 +37,24 @@ NEAR_REACH = 0.5
 LAYER_COVER = 0.05
 #: The field is looked at every STEP px: it is smooth over its cells (``parallax_cell``).
 STEP = 4
+#: A vector off the fit by more than this many px is scattered (RANSAC's threshold is 1 px).
+OFF_PX = 1.0
+#: A guessed layer is taken only when the vectors its read takes move as one: their median
+#: distance from their median under this many px (water or a crowd read again scatter still).
+GUESS_SPREAD = 1.0
 
 
 @dataclass(frozen=True)
 class NearLayer:
     """A layer nearer than the camera's plane: its ``shift`` ((2,) float64 px a frame beyond
     the plane's motion) and its ``region`` ((h // STEP, w // STEP) bool, current-frame pixels
-    every ``STEP``: where the field departs along the shift by at least half of it)."""
+    every ``STEP``: where the field departs along the shift by at least half of it).
+    ``spread``: how far (px, median) the vectors a second read takes for it may scatter about
+    their median (a guess must move as one layer)."""
 
     shift: np.ndarray
     region: np.ndarray
+    spread: float = float("inf")
 
     def prior(self, plane: np.ndarray) -> np.ndarray:
         """``(3, 3) float64``: the motion ``plane`` (3, 3) followed by the layer's shift."""
@@ -89,3 +103,40 @@ def _reach(where: np.ndarray, path: np.ndarray) -> float:
     h, w = where.shape
     lo, hi = np.percentile(along, [5, 95])
     return float(hi - lo) / (abs(u[0]) * w + abs(u[1]) * h)
+
+
+def probed_layer(points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
+                 matrix: np.ndarray, shape: tuple, *, share: float,
+                 least: float) -> Optional[NearLayer]:
+    """A guess of a near layer where no parallax field shows one: the vectors that scatter off
+    the fit ``matrix`` ((3, 3)) by over :data:`OFF_PX`, when they are at least ``share`` of the
+    ``(N, 2)`` ``points`` / ``disp`` with ``(N,)`` ``weights`` > 0, taken as a layer that moves
+    twice as fast as the plane (its shift is the plane's motion at the centre of the ``(h, w)``
+    frame). None when fewer scatter, when they do not reach across ``NEAR_REACH`` of the view
+    along that shift (an object is compact), or when the shift is under ``least`` px: a layer
+    ahead of a slower plane stays within the read's reach. Its region is the cells of the scattered
+    vectors' ``points``, where :meth:`NearLayer.covers` finds them again.
+
+    Nearer ground moves further in the plane's direction than the plane; twice the plane's
+    motion halves the departure of ground that moves up to three times as fast, which the first
+    read, pre-warped by the plane alone, can leave beyond the model's 4 px range: read wrong, and
+    scattered. The layer's ``spread`` is :data:`GUESS_SPREAD`."""
+    use = np.asarray(weights) > 0
+    pts = np.asarray(points, np.float64)[use]
+    off = np.hypot(*(np.asarray(disp, np.float64)[use] - apply_homography(matrix, pts)
+                     + pts).T) > OFF_PX
+    if not off.any() or np.count_nonzero(off) < share * len(off):
+        return None
+    h, w = shape[:2]
+    centre = np.array([[w / 2.0, h / 2.0]])
+    shift = (apply_homography(np.asarray(matrix, np.float64), centre) - centre)[0]
+    if float(np.hypot(*shift)) < least:
+        return None
+    region = np.zeros((-(-h // STEP), -(-w // STEP)), bool)
+    xy = np.floor(pts[off] / STEP).astype(np.intp)
+    inside = (xy[:, 0] >= 0) & (xy[:, 0] < region.shape[1]) & (xy[:, 1] >= 0)
+    inside &= xy[:, 1] < region.shape[0]
+    region[xy[inside, 1], xy[inside, 0]] = True
+    if not region.any() or _reach(region, shift) < NEAR_REACH:
+        return None
+    return NearLayer(shift, region, GUESS_SPREAD)

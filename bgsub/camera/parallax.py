@@ -28,12 +28,16 @@ import cv2
 import numpy as np
 
 from bgsub._util import cell_index
-from bgsub.camera.near_layer import NEAR_REACH, NearLayer, leading_layer
+from bgsub.camera.near_layer import NEAR_REACH, NearLayer, leading_layer, probed_layer
 from bgsub.motion.global_motion import apply_homography
 from bgsub.settings import check_settings, setting
 
 #: A post's cells depart from the 5 x 5 median by more than this (px of parallax).
 POST_GAP = 0.5
+#: After a guessed layer's read is refused (its vectors scatter: water, a crowd), the next
+#: guess waits 1, 2, 4, ... frames, at most this many: a refused read changes nothing but costs
+#: a read.
+PROBE_WAIT = 8
 
 __all__ = ["ParallaxConfig", "ParallaxField", "fit_epipole", "parallax_directions"]
 
@@ -95,6 +99,13 @@ class ParallaxConfig:
                                          "field that showed it: the finest level alone, "
                                          "pre-warped by the plane, reads it wrong near the "
                                          "edge of the model's 4 px range (0 = off)", low=0)
+    parallax_probe: float = setting(0.15, "where no parallax field stands and at least this "
+                                          "share of the vectors scatter off the fit by over "
+                                          "1 px, the frame is read a second time pre-warped by "
+                                          "twice the plane's motion, for near ground read "
+                                          "wrong from the start (a plane moving at least half "
+                                          "parallax_layer px a frame; 0 = off)",
+                                    low=0, high=1)
 
     def __post_init__(self) -> None:
         check_settings(self)
@@ -187,6 +198,8 @@ class ParallaxField:
         self.since = _LONG_AGO  # frames since the last field (0: the last frame had one)
         self.layer: Optional[NearLayer] = None  # the last near layer seen ahead of the plane
         self.layer_since = _LONG_AGO  # frames since it was seen
+        self.looked = 0  # frames looked at since the start (the last restart)
+        self._probe_wait, self._probe_next = 0, 1  # frames to the next guess; the next wait
 
     def discount_edges(self, score: np.ndarray, violation: Optional[np.ndarray]) -> None:
         """At the last field's depth edges, lower the background ``score`` ((h, w) float32) by
@@ -205,6 +218,7 @@ class ParallaxField:
         self.path.recent = []
         self.since = self.layer_since = _LONG_AGO
         self.layer = None
+        self.looked = 0
 
     def standing(self) -> bool:
         """Whether a field was made within the last ``parallax_keep`` frames: a 3-D scene."""
@@ -219,6 +233,7 @@ class ParallaxField:
         parallax stands out (module docstring). ``foreground`` ((h, w) uint8, the last mask)
         keeps the depths the field remembers from learning an object's motion."""
         field = self._estimate(points, disp, weights, matrix, shape, foreground=foreground)
+        self.looked += 1
         self.since = 0 if field is not None else self.since + 1
         layer = None if field is None else leading_layer(field, matrix,
                                                          least=self.config.parallax_min)
@@ -235,6 +250,33 @@ class ParallaxField:
                 or float(np.hypot(*layer.shift)) < c.parallax_layer):
             return None
         return layer
+
+    def layer_to_probe(self, result: Any, shape: tuple) -> Optional[NearLayer]:
+        """Where no field stands, the near layer the frame's vectors suggest
+        (:func:`~bgsub.camera.near_layer.probed_layer`) for a second read: ``result`` is the
+        front end's :class:`~bgsub.motion.result.MotionResult` of a frame of ``shape``
+        (h, w). None with a field standing, before the field has had ``parallax_frames``
+        frames to stand (the depths it remembers start from the first ones), without a fit,
+        or with ``parallax``, ``parallax_layer`` or ``parallax_probe`` off."""
+        c = self.config
+        if self._probe_wait > 0:
+            self._probe_wait -= 1
+            return None
+        if (self.standing() or self.looked < c.parallax_frames or not result.motion.ok
+                or c.parallax == 0
+                or c.parallax_layer == 0 or c.parallax_probe == 0):
+            return None
+        return probed_layer(result.points, result.disp, result.weights, result.motion.matrix,
+                            shape, share=c.parallax_probe, least=c.parallax_layer / 2)
+
+    def probe_taken(self, taken: bool) -> None:
+        """Whether the second read of the last :meth:`layer_to_probe` layer was taken: after a
+        refusal the next guess waits (:data:`PROBE_WAIT`)."""
+        if taken:
+            self._probe_next = 1
+        else:
+            self._probe_wait = self._probe_next
+            self._probe_next = min(2 * self._probe_next, PROBE_WAIT)
 
     def _estimate(self, points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
                   matrix: np.ndarray, shape: tuple, *,

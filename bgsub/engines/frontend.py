@@ -112,7 +112,8 @@ class MotionFrontEnd(ABC):
                    layer: NearLayer, fit: CameraFit) -> MotionResult:
         """``result`` (what :meth:`measure` found from ``prior``) with the vectors of a second
         read, pre-warped by ``layer.prior(prior)``, where they read the near ``layer`` better
-        (:mod:`bgsub.camera.near_layer`); by default ``result`` itself."""
+        (:mod:`bgsub.camera.near_layer`); ``result`` itself (the same object) where the second
+        read takes nothing, as by default."""
         return result
 
     def check_size(self, gray: np.ndarray) -> None:

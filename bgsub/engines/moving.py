@@ -360,14 +360,29 @@ class MovingCameraEngine(Engine):
                 # would otherwise drift by that reading's error.
                 return NO_MOTION
             result = self.frontend.measure(self.previous.data, cur, prior=prior, fit=fit)
-            layer = self.parallax.layer_to_read()
-            if layer is not None and prior is not None:
-                result = self.frontend.read_layer(self.previous.data, cur, result,
-                                                  prior=prior, layer=layer, fit=fit)
+            result = self._read_layer(cur, result, prior=prior, fit=fit, shape=gray.shape)
         if self.roi is None:  # (a region of interest given replaces the overlays' detection)
             self.overlays.observe(gray, result.points, result.disp, result.weights,
                                   camera_still=self.camera_still)
         return self._region.restrict(result, gray.shape)
+
+    def _read_layer(self, cur: Any, result: MotionResult, *, prior: Optional[np.ndarray],
+                    fit: Any, shape: tuple) -> MotionResult:
+        """``result`` with a near layer read a second time: the one a recent parallax field
+        showed, pre-warped from ``prior`` (``parallax_layer``), or, where no field stands,
+        the one the scattered vectors suggest, pre-warped from this fit
+        (``parallax_probe``); ``result`` as it is without either."""
+        layer = self.parallax.layer_to_read()
+        if layer is not None and prior is not None:
+            return self.frontend.read_layer(self.previous.data, cur, result, prior=prior,
+                                            layer=layer, fit=fit)
+        probe = self.parallax.layer_to_probe(result, shape)
+        if probe is None:
+            return result
+        read = self.frontend.read_layer(self.previous.data, cur, result,
+                                        prior=result.motion.matrix, layer=probe, fit=fit)
+        self.parallax.probe_taken(read is not result)
+        return read
 
     def _learn(self) -> None:
         """The learn stage: the last frame's deferred update of the models, after which the

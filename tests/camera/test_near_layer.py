@@ -1,5 +1,6 @@
 """A near layer beyond the reduced read's reach (bgsub.camera.near_layer): found in a parallax
-field with exact answers, and read a second time by the engine on a two-layer scene."""
+field or guessed from scattered vectors with exact answers, and read a second time by the
+engine on two-layer scenes."""
 
 import cv2
 import numpy as np
@@ -7,7 +8,9 @@ import pytest
 from helpers import random_texture
 
 from bgsub import create_engine
-from bgsub.camera.near_layer import leading_layer
+from bgsub.camera.near_layer import leading_layer, probed_layer
+from bgsub.motion.global_motion import GlobalMotion
+from bgsub.motion.result import MotionResult
 from bgsub.camera.parallax import ParallaxConfig, ParallaxField
 
 SHAPE = (240, 320)  # (h, w)
@@ -53,6 +56,62 @@ def _band_vectors(seed, band_speed):
     disp = np.tile(PAN[:2, 2], (len(pts), 1))
     disp[pts[:, 1] >= 0.7 * SHAPE[0]] *= band_speed
     return pts, disp + rng.normal(0, 0.1, disp.shape), np.ones(len(pts))
+
+
+def _scattered(seed, share=0.3, pan=PAN):
+    """``(points, disp, weights)``: the far layer moving by ``pan``; the frame's bottom
+    ``share`` read wrong, scattered by 3 px."""
+    rng = np.random.default_rng(seed)
+    pts, disp, weights = _band_vectors(seed, band_speed=1.0)
+    disp[:] = pan[:2, 2]
+    band = pts[:, 1] >= (1 - share) * SHAPE[0]
+    disp[band] += rng.normal(0, 3.0, (np.count_nonzero(band), 2))
+    return pts, disp, weights, band
+
+
+def test_scattered_vectors_across_the_view_suggest_a_layer_twice_as_fast_as_the_plane():
+    pts, disp, weights, band = _scattered(0)
+    layer = probed_layer(pts, disp, weights, PAN, SHAPE, share=0.15, least=1.5)
+    assert layer is not None
+    assert np.allclose(layer.shift, PAN[:2, 2])  # the plane's motion again
+    covered = layer.covers(pts)
+    assert covered[~band].sum() == 0 and covered[band].mean() > 0.8  # (a few read it right)
+
+
+def test_few_scattered_vectors_or_a_slow_plane_suggest_no_layer():
+    pts, disp, weights, _ = _scattered(0, share=0.1)
+    assert probed_layer(pts, disp, weights, PAN, SHAPE, share=0.15, least=1.5) is None
+    slow = PAN.copy()
+    slow[0, 2] = -1.0
+    pts, disp, weights, _ = _scattered(0, pan=slow)
+    assert probed_layer(pts, disp, weights, slow, SHAPE, share=0.15, least=1.5) is None
+
+
+def test_a_layer_is_probed_only_where_no_field_stands_and_the_probe_is_on():
+    pts, disp, weights, _ = _scattered(0)
+    result = MotionResult(pts, disp, weights, GlobalMotion(PAN, np.ones(len(pts), bool), True))
+    young = ParallaxField(ParallaxConfig())
+    assert young.layer_to_probe(result, SHAPE) is None  # before a field could stand
+    assert _after(4, band_speed=1.0).layer_to_probe(result, SHAPE) is not None  # none stands
+    off = _after(4, 1.0, ParallaxConfig(parallax_probe=0))
+    assert off.layer_to_probe(result, SHAPE) is None
+    assert _after(4, band_speed=3.0).layer_to_probe(result, SHAPE) is None  # a field stands
+
+
+def test_after_a_refused_guess_the_next_ones_wait_longer():
+    pts, disp, weights, _ = _scattered(0)
+    result = MotionResult(pts, disp, weights, GlobalMotion(PAN, np.ones(len(pts), bool), True))
+    parallax = _after(4, band_speed=1.0)
+    guessed = []
+    for _ in range(7):
+        layer = parallax.layer_to_probe(result, SHAPE)
+        guessed.append(layer is not None)
+        if layer is not None:
+            parallax.probe_taken(False)
+    assert guessed == [True, False, True, False, False, True, False]  # waits 1, then 2
+    parallax.probe_taken(True)
+    assert [parallax.layer_to_probe(result, SHAPE) is not None for _ in range(5)] == [
+        False, False, False, True, True]  # (the wait running) then every frame again
 
 
 def _after(frames, band_speed, config=ParallaxConfig()):
@@ -117,3 +176,33 @@ def test_near_ground_beyond_the_reads_reach_stays_background(two_layer_clip):
 
 def test_without_the_second_read_the_near_ground_is_foreground(two_layer_clip):
     assert _ground_foreground(two_layer_clip, parallax_layer=0) > 0.5
+
+
+@pytest.fixture(scope="module")
+def near_ground_from_the_start():
+    # (the ground moves 6 px beyond the plane from the first frame: no field ever shows it)
+    return _two_layer_clip(60, far=3.0, near=9.0)
+
+
+def test_near_ground_read_wrong_from_the_start_stays_background(near_ground_from_the_start):
+    assert _ground_foreground(near_ground_from_the_start) < 0.05
+
+
+def test_without_the_probe_that_ground_is_foreground(near_ground_from_the_start):
+    assert _ground_foreground(near_ground_from_the_start, parallax_probe=0) > 0.5
+
+
+def test_a_guess_whose_second_read_scatters_too_is_not_taken():
+    # (the view's bottom third is new noise every frame, as water or snow: no layer)
+    h, w = SHAPE
+    rng = np.random.default_rng(3)
+    far = random_texture(h, w + 200, seed=1)
+    frames = []
+    for k in range(24):
+        img = cv2.warpAffine(far, np.float32([[1, 0, -3.0 * k], [0, 1, 0]]), (w, h))
+        img[160:] = rng.integers(0, 256, (h - 160, w))
+        frames.append(cv2.cvtColor(img.astype(np.uint8), cv2.COLOR_GRAY2BGR))
+    probed, plain = create_engine("grbm", lookback=0), create_engine("grbm", lookback=0,
+                                                                     parallax_probe=0)
+    for frame in frames:
+        assert np.array_equal(probed.apply(frame), plain.apply(frame))

@@ -235,7 +235,8 @@ class GrbmFrontEnd(MotionFrontEnd):
             return result
         second = self.read(prev, cur, layer.prior(prior), finest=self.flow.finest, fit=fit,
                            levels=levels).flow
-        merged = _merged(first, second, where=layer.covers(first.centres))
+        merged = _merged(first, second, where=layer.covers(first.centres),
+                         spread=layer.spread)
         if merged is None:
             return result
         reading = self._refit(merged, prev, cur, fit) or _fitted(merged, None, fit, cur.shape)
@@ -344,17 +345,22 @@ def _fitted(flow: FlowEstimate, refined: Optional[np.ndarray], fit: CameraFit,
                    settled=refined is not None)
 
 
-def _merged(first: FlowEstimate, second: FlowEstimate, *,
-            where: np.ndarray) -> Optional[FlowEstimate]:
+def _merged(first: FlowEstimate, second: FlowEstimate, *, where: np.ndarray,
+            spread: float = np.inf) -> Optional[FlowEstimate]:
     """``first`` with the patches ``where`` ((N,) bool) that ``second`` (the same grid read
     with another pre-warp) read with more confidence, or where only it read them, taken from
-    it; None when the grids differ or it reads no patch better."""
+    it; None when the grids differ, it reads no patch better, or the vectors it would give
+    lie further than ``spread`` px (median) from their median."""
     if (second.centres.shape != first.centres.shape
             or not np.allclose(second.centres, first.centres)):
         return None
     take = where & second.valid & (~first.valid | (second.confidence > first.confidence))
     if not take.any():
         return None
+    if np.isfinite(spread):
+        taken = second.disp[take]
+        if float(np.median(np.hypot(*(taken - np.median(taken, axis=0)).T))) > spread:
+            return None
 
     def pick(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         return np.where(take.reshape((-1,) + (1,) * (a.ndim - 1)), a, b)

@@ -16,7 +16,7 @@ scene's coordinates (a static point keeps its depth from frame to frame; an obje
 along the parallax direction does not). Without enough parallax (a still or rotating camera, a
 planar scene) it returns None and the homography alone is the background's motion. A near
 layer that moves too far beyond the plane for the next frame's read is remembered for a second
-read (:mod:`bgsub.camera.near_layer`).
+read, or guessed where no field stands (:mod:`bgsub.camera.near_layer`).
 """
 
 from __future__ import annotations
@@ -263,8 +263,7 @@ class ParallaxField:
             self._probe_wait -= 1
             return None
         if (self.standing() or self.looked < c.parallax_frames or not result.motion.ok
-                or c.parallax == 0
-                or c.parallax_layer == 0 or c.parallax_probe == 0):
+                or 0 in (c.parallax, c.parallax_layer, c.parallax_probe)):
             return None
         return probed_layer(result.points, result.disp, result.weights, result.motion.matrix,
                             shape, share=c.parallax_probe, least=c.parallax_layer / 2)

@@ -89,6 +89,10 @@ class ForegroundConfig:
     still_spread: float = setting(5.0, "the still-camera model's radius at a pixel widens by "
                                        "this many times the pixel's usual distance to its "
                                        "samples (0 = one radius of 20 for every pixel)", low=0)
+    still_pause: int = setting(0, "1 = the still-camera model learns nothing while the camera "
+                                  "moves rigidly (a view that is gone when the camera stops): "
+                                  "a third of a millisecond less a frame at 160 px wide, the "
+                                  "fast preset's; 0 = it learns every frame", low=0, high=1)
 
     shadow: float = setting(0.5, "clear from a moving camera's mask the shadows: where the frame "
                                  "is the compensated background darker, by a brightness ratio "

@@ -80,12 +80,13 @@ class StillCameraSwitch:
 
     def __init__(self, *, still_model: float, still_snr: float, window: int,
                  still_versus: float = 0.0, steady: float = 0.0, radius: float = 20.0,
-                 spread: float = 0.0) -> None:
+                 spread: float = 0.0, pause: bool = False) -> None:
         self.still_model = float(still_model)
         self.still_snr = float(still_snr)
         self.still_versus = float(still_versus)
         self.steady = float(steady)
         self.window = max(int(window), 1)
+        self.pause = bool(pause)
         # Each pixel's radius: ``radius`` where it holds still, wider by ``spread`` times its
         # usual distance to its samples (0: one radius of 20 for all).
         self.model = (SampleBackground(radius_min=radius, radius_gain=spread) if spread > 0
@@ -96,19 +97,23 @@ class StillCameraSwitch:
         self._votes: collections.deque = collections.deque(maxlen=self.window)
         self._steps: collections.deque = collections.deque(maxlen=self.window)  # (2,) each
         self.camera_still = False
+        self._rigid = False  # the last frame judged was seen moving rigidly (not scored)
 
     def reset(self, frame: np.ndarray) -> None:
         """Start over from ``frame`` (a restart of the engine's model)."""
         self.model.reset(frame)
         self._votes.clear()
         self._steps.clear()
-        self.camera_still = False
+        self.camera_still = self._rigid = False
 
     restart = reset  # (the engine's restart from a frame)
 
     def update(self, frame: np.ndarray, learn_slowly: np.ndarray, rate: float) -> None:
-        """Learn ``frame`` (:meth:`SampleBackground.update`'s conventions)."""
-        self.model.update(frame, learn_slowly, rate)
+        """Learn ``frame`` (:meth:`SampleBackground.update`'s conventions); with ``pause``, not
+        while the last frame judged was seen moving rigidly (its view is gone by the time the
+        camera stops: ``still_pause``, a cost saved)."""
+        if not (self.pause and self._rigid):
+            self.model.update(frame, learn_slowly, rate)
 
     def judge(self, frame: np.ndarray, result: MotionResult, *,
               compensated: Optional[CompensatedBackground] = None,
@@ -124,8 +129,9 @@ class StillCameraSwitch:
             # A rigid motion: the camera moves whatever the sample model says, so the frame is
             # not scored, and counts as one the sample model does not explain.
             self._votes.append((1.0, snr, 1.0))
-            self.camera_still = False
+            self.camera_still, self._rigid = False, True
             return None
+        self._rigid = False
         score = self.model.score(frame)
         fraction = _foreground_fraction(score)
         excess = -np.inf

@@ -194,7 +194,8 @@ class MovingCameraEngine(Engine):
                                                window=f.still_window,
                                                still_versus=f.still_versus,
                                                steady=f.still_steady,
-                                               radius=f.still_radius, spread=f.still_spread)
+                                               radius=f.still_radius, spread=f.still_spread,
+                                               pause=bool(f.still_pause))
                              if f.still_model > 0 else NoStillSwitch())
         self.thread = SecondThread(overlap=self.config.overlap, name=self.name)
         self.foreground = Foreground(

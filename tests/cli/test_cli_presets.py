@@ -91,7 +91,8 @@ def test_methods_lists_each_preset_with_its_values(capsys):
     start = lines.index("  presets (--preset NAME; -p overrides their values):")
     assert [line.split() for line in lines[start + 1:start + 4]] == [
         ["fast", "work_width=160,", "stride=16,", "overlay=0,", "edge_radius=4,",
-         "ransac_threshold=0.5,", "violation_threshold=0.375,", "overlap=0"],
+         "ransac_threshold=0.5,", "violation_threshold=0.375,", "overlap=0,",
+         "still_pause=1"],
         ["balanced", "the", "defaults"],
         ["accurate", "work_width=480"]]
 
@@ -101,7 +102,8 @@ def test_methods_json_holds_the_presets(capsys):
     entry = json.loads(capsys.readouterr().out)[0]
     assert entry["presets"] == {"fast": {"work_width": 160, "stride": 16, "overlay": 0,
                                          "edge_radius": 4, "ransac_threshold": 0.5,
-                                         "violation_threshold": 0.375, "overlap": 0},
+                                         "violation_threshold": 0.375, "overlap": 0,
+                                         "still_pause": 1},
                                 "balanced": {}, "accurate": {"work_width": 480}}
 
 

@@ -25,7 +25,8 @@ def test_each_moving_engine_has_the_three_presets_of_its_front_end(method):
 def test_the_gated_rbm_has_a_fast_preset_of_its_own_and_the_base_others():
     assert GrbmFrontEnd.presets["fast"] == {"work_width": 160, "stride": 16, "overlay": 0,
                                             "edge_radius": 4, "ransac_threshold": 0.5,
-                                            "violation_threshold": 0.375, "overlap": 0}
+                                            "violation_threshold": 0.375, "overlap": 0,
+                                            "still_pause": 1}
     assert LucasKanadeFrontEnd.presets == MotionFrontEnd.presets
     for name in ("balanced", "accurate"):
         assert GrbmFrontEnd.presets[name] == MotionFrontEnd.presets[name]
@@ -51,6 +52,7 @@ def test_the_gated_rbm_fast_preset_reaches_its_stages():
     assert engine.overlays.config.overlay == 0
     assert engine.camera.config.ransac_threshold == 0.5
     assert engine.fusion.config.violation_threshold == 0.375
+    assert engine.still_switch.pause and not create_engine("grbm").still_switch.pause
 
 
 def test_an_explicit_parameter_wins_over_the_preset():

@@ -154,3 +154,22 @@ def test_a_flow_that_varies_from_frame_to_frame_is_no_pan():
 
 def test_a_steady_step_under_half_a_pixel_is_not_judged():
     assert _switch_after([(0.3, 0.0)] * 12, steady=0.04).camera_still
+
+
+def test_with_still_pause_the_still_model_learns_nothing_while_the_camera_moves_rigidly():
+    from bgsub.background.still_switch import StillCameraSwitch
+    rng = np.random.default_rng(6)
+    first, second = (rng.integers(0, 256, (60, 80, 3), dtype=np.uint8) for _ in range(2))
+    pan = np.array([[1, 0, 3.0], [0, 1, 0], [0, 0, 1]])
+    rigid = _result(np.array([3.0, 0.0]) + rng.normal(0, 0.1, (60, 2)), matrix=pan)
+    still = _result(rng.normal(0, 1.5, (60, 2)))
+    learnt = []
+    for result, pause in ((rigid, True), (still, True), (rigid, False)):
+        switch = StillCameraSwitch(still_model=0.15, still_snr=4.0, window=1, pause=pause)
+        switch.reset(first)
+        switch.judge(second, result)
+        before = switch.model.s.copy()
+        for _ in range(4):
+            switch.update(second, None, 0.5)  # (half the pixels renew a sample each time)
+        learnt.append(not np.array_equal(before, switch.model.s))
+    assert learnt == [False, True, True]  # (paused only while moving; no pause: learnt)

@@ -141,11 +141,13 @@ class GrbmFrontEnd(MotionFrontEnd):
     #: patch grid of half the density in each direction (stride 16), no search for frame-fixed
     #: overlays, and the distances in working pixels halved with it (the RANSAC and violation
     #: thresholds, the edge windows' radius). At that size a frame's deferred work is smaller
-    #: than the cost of handing it to a second thread, so ``fast`` runs in one (``overlap=0``).
+    #: than the cost of handing it to a second thread, so ``fast`` runs in one (``overlap=0``),
+    #: and its still-camera model learns nothing while the camera moves (``still_pause``).
     presets = MappingProxyType({
         **MotionFrontEnd.presets,
         "fast": {"work_width": 160, "stride": 16, "overlay": 0, "edge_radius": 4,
-                 "ransac_threshold": 0.5, "violation_threshold": 0.375, "overlap": 0},
+                 "ransac_threshold": 0.5, "violation_threshold": 0.375, "overlap": 0,
+                 "still_pause": 1},
     })
 
     def __init__(self, config: Optional[GrbmConfig] = None, *,

@@ -28,6 +28,7 @@ class BlackBars:
     def __init__(self) -> None:
         self.depth: Optional[Tuple[int, int, int, int]] = None  # top, bottom, left, right
         self.frames = 0
+        self._made: tuple = (None, None)  # (what the last mask was made from, that mask)
 
     def observe(self, gray: np.ndarray) -> None:
         """Take in a frame (``(h, w) uint8``): a bar is as deep as it is in every frame."""
@@ -38,9 +39,17 @@ class BlackBars:
 
     def mask(self, shape: tuple, *, frames: int, grow: int) -> Optional[np.ndarray]:
         """``(h, w) bool``: the bars, each ``grow`` px deeper (the scene's edge against them
-        blurs), once ``frames`` frames were observed; None without a bar."""
+        blurs), once ``frames`` frames were observed; None without a bar. The same array while
+        the bars stay as they are (the engine remakes its region of interest when it changes)."""
         if self.depth is None or self.frames < frames or not any(self.depth):
             return None
+        key = (self.depth, shape[:2], grow)
+        if self._made[0] != key:
+            self._made = (key, self._drawn(shape, grow))
+        return self._made[1]
+
+    def _drawn(self, shape: tuple, grow: int) -> np.ndarray:
+        """``(h, w) bool``: the bars of :attr:`depth`, each ``grow`` px deeper."""
         h, w = shape[:2]
         top, bottom, left, right = (d + grow if d else 0 for d in self.depth)
         rows, cols = np.arange(h), np.arange(w)

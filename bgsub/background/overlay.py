@@ -115,6 +115,7 @@ class OverlayDetector:
         self._still: Optional[np.ndarray] = None  # (gh, gw) float32: cells' vector motion
         self._found: Optional[np.ndarray] = None  # (h, w) bool: the textured overlays
         self._bars = BlackBars()  # letterbox and pillarbox bars (flat: no pixel is textured)
+        self._shown: tuple = (None, None)  # the bars and found overlays self.mask is of
         self.mask = None
 
     @property
@@ -136,8 +137,12 @@ class OverlayDetector:
         if not camera_still:  # (as the textured ones: a still camera drags nothing)
             self._bars.observe(gray)
         bars = self._bars.mask(gray.shape, frames=self.config.overlay_frames, grow=GROW_PX)
-        self.mask = self._found if bars is None else (
-            bars if self._found is None else bars | self._found)
+        shown_bars, shown_found = self._shown
+        if bars is not shown_bars or self._found is not shown_found:
+            # (a new mask only when a part changed: the engine remakes its region then)
+            self._shown = (bars, self._found)
+            self.mask = self._found if bars is None else (
+                bars if self._found is None else bars | self._found)
 
     def _learn(self, cur: np.ndarray, old: np.ndarray, points: np.ndarray, disp: np.ndarray,
                weights: np.ndarray) -> None:

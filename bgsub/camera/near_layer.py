@@ -64,12 +64,18 @@ class NearLayer:
 
     def covers(self, points: np.ndarray) -> np.ndarray:
         """``(N,) bool``: which of the ``(N, 2)`` points (x, y) lie in the layer's region."""
-        h, w = self.region.shape
-        xy = np.floor(np.asarray(points, np.float64) / STEP).astype(np.intp)
-        inside = (xy[:, 0] >= 0) & (xy[:, 0] < w) & (xy[:, 1] >= 0) & (xy[:, 1] < h)
+        xy, inside = _cells(points, self.region.shape)
         out = np.zeros(len(xy), bool)
         out[inside] = self.region[xy[inside, 1], xy[inside, 0]]
         return out
+
+
+def _cells(points: np.ndarray, grid: tuple) -> tuple:
+    """``(xy (N, 2) intp, inside (N,) bool)``: the STEP x STEP cell (column, row) of each of the
+    ``(N, 2)`` points (x, y), and whether it lies on the ``grid`` (rows, columns)."""
+    xy = np.floor(np.asarray(points, np.float64) / STEP).astype(np.intp)
+    inside = (xy[:, 0] >= 0) & (xy[:, 0] < grid[1]) & (xy[:, 1] >= 0) & (xy[:, 1] < grid[0])
+    return xy, inside
 
 
 def leading_layer(field: np.ndarray, matrix: np.ndarray, *,
@@ -133,9 +139,7 @@ def probed_layer(points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
     if float(np.hypot(*shift)) < least:
         return None
     region = np.zeros((-(-h // STEP), -(-w // STEP)), bool)
-    xy = np.floor(pts[off] / STEP).astype(np.intp)
-    inside = (xy[:, 0] >= 0) & (xy[:, 0] < region.shape[1]) & (xy[:, 1] >= 0)
-    inside &= xy[:, 1] < region.shape[0]
+    xy, inside = _cells(pts[off], region.shape)
     region[xy[inside, 1], xy[inside, 0]] = True
     if not region.any() or _reach(region, shift) < NEAR_REACH:
         return None

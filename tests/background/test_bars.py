@@ -48,6 +48,18 @@ def test_a_bar_is_only_as_deep_as_in_every_frame():
     assert mask[:5].all() and not mask[5:].any()
 
 
+def test_the_mask_is_made_again_only_when_the_bars_change():
+    bars = BlackBars()
+    for k in range(4):
+        bars.observe(_framed(k, top=20))
+    first = bars.mask(SHAPE, frames=4, grow=0)
+    bars.observe(_framed(5, top=20))
+    assert bars.mask(SHAPE, frames=4, grow=0) is first  # (the engine keeps its region)
+    bars.observe(_framed(6, top=5))
+    shallower = bars.mask(SHAPE, frames=4, grow=0)
+    assert shallower is not first and shallower[:5].all() and not shallower[5:].any()
+
+
 def test_a_frame_without_black_edges_has_no_bars():
     assert _bars([_framed(k) for k in range(6)]) is None
 

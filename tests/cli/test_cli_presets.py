@@ -92,7 +92,7 @@ def test_methods_lists_each_preset_with_its_values(capsys):
     assert [line.split() for line in lines[start + 1:start + 4]] == [
         ["fast", "work_width=160,", "stride=16,", "overlay=0,", "edge_radius=4,",
          "ransac_threshold=0.5,", "violation_threshold=0.375,", "overlap=0,",
-         "still_pause=1"],
+         "still_pause=1,", "flow_boost=1.0,", "grow_above=0.8"],
         ["balanced", "the", "defaults"],
         ["accurate", "work_width=480"]]
 
@@ -103,7 +103,8 @@ def test_methods_json_holds_the_presets(capsys):
     assert entry["presets"] == {"fast": {"work_width": 160, "stride": 16, "overlay": 0,
                                          "edge_radius": 4, "ransac_threshold": 0.5,
                                          "violation_threshold": 0.375, "overlap": 0,
-                                         "still_pause": 1},
+                                         "still_pause": 1, "flow_boost": 1.0,
+                                         "grow_above": 0.8},
                                 "balanced": {}, "accurate": {"work_width": 480}}
 
 

@@ -26,7 +26,8 @@ def test_the_gated_rbm_has_a_fast_preset_of_its_own_and_the_base_others():
     assert GrbmFrontEnd.presets["fast"] == {"work_width": 160, "stride": 16, "overlay": 0,
                                             "edge_radius": 4, "ransac_threshold": 0.5,
                                             "violation_threshold": 0.375, "overlap": 0,
-                                            "still_pause": 1}
+                                            "still_pause": 1, "flow_boost": 1.0,
+                                            "grow_above": 0.8}
     assert LucasKanadeFrontEnd.presets == MotionFrontEnd.presets
     for name in ("balanced", "accurate"):
         assert GrbmFrontEnd.presets[name] == MotionFrontEnd.presets[name]
@@ -52,6 +53,8 @@ def test_the_gated_rbm_fast_preset_reaches_its_stages():
     assert engine.overlays.config.overlay == 0
     assert engine.camera.config.ransac_threshold == 0.5
     assert engine.fusion.config.violation_threshold == 0.375
+    assert engine.fusion.config.flow_boost == 1.0
+    assert engine.foreground.object_colours.above == 0.8
     assert engine.still_switch.pause and not create_engine("grbm").still_switch.pause
 
 

@@ -142,12 +142,15 @@ class GrbmFrontEnd(MotionFrontEnd):
     #: overlays, and the distances in working pixels halved with it (the RANSAC and violation
     #: thresholds, the edge windows' radius). At that size a frame's deferred work is smaller
     #: than the cost of handing it to a second thread, so ``fast`` runs in one (``overlap=0``),
-    #: and its still-camera model learns nothing while the camera moves (``still_pause``).
+    #: and its still-camera model learns nothing while the camera moves (``still_pause``). Its
+    #: vectors, a sixteenth of ``balanced``'s, are coarse evidence: they boost the background
+    #: score less (``flow_boost``), and a blob grows over its objects' colours a little more
+    #: readily (``grow_above``).
     presets = MappingProxyType({
         **MotionFrontEnd.presets,
         "fast": {"work_width": 160, "stride": 16, "overlay": 0, "edge_radius": 4,
                  "ransac_threshold": 0.5, "violation_threshold": 0.375, "overlap": 0,
-                 "still_pause": 1},
+                 "still_pause": 1, "flow_boost": 1.0, "grow_above": 0.8},
     })
 
     def __init__(self, config: Optional[GrbmConfig] = None, *,

@@ -92,7 +92,8 @@ def test_methods_lists_each_preset_with_its_values(capsys):
     assert [line.split() for line in lines[start + 1:start + 4]] == [
         ["fast", "work_width=160,", "stride=16,", "overlay=0,", "edge_radius=4,",
          "ransac_threshold=0.5,", "violation_threshold=0.375,", "overlap=0,",
-         "still_pause=1,", "flow_boost=1.0,", "grow_above=0.8"],
+         "still_pause=1,", "flow_boost=1.0,", "grow_above=0.8,",
+         "lookback=45"],
         ["balanced", "the", "defaults"],
         ["accurate", "work_width=480"]]
 
@@ -104,7 +105,7 @@ def test_methods_json_holds_the_presets(capsys):
                                          "edge_radius": 4, "ransac_threshold": 0.5,
                                          "violation_threshold": 0.375, "overlap": 0,
                                          "still_pause": 1, "flow_boost": 1.0,
-                                         "grow_above": 0.8},
+                                         "grow_above": 0.8, "lookback": 45},
                                 "balanced": {}, "accurate": {"work_width": 480}}
 
 

@@ -27,7 +27,7 @@ def test_the_gated_rbm_has_a_fast_preset_of_its_own_and_the_base_others():
                                             "edge_radius": 4, "ransac_threshold": 0.5,
                                             "violation_threshold": 0.375, "overlap": 0,
                                             "still_pause": 1, "flow_boost": 1.0,
-                                            "grow_above": 0.8}
+                                            "grow_above": 0.8, "lookback": 45}
     assert LucasKanadeFrontEnd.presets == MotionFrontEnd.presets
     for name in ("balanced", "accurate"):
         assert GrbmFrontEnd.presets[name] == MotionFrontEnd.presets[name]
@@ -55,6 +55,7 @@ def test_the_gated_rbm_fast_preset_reaches_its_stages():
     assert engine.fusion.config.violation_threshold == 0.375
     assert engine.fusion.config.flow_boost == 1.0
     assert engine.foreground.object_colours.above == 0.8
+    assert engine.lookback == 45
     assert engine.still_switch.pause and not create_engine("grbm").still_switch.pause
 
 

@@ -2,8 +2,9 @@
 
 The file holds ``name = value`` pairs, the names that ``--param`` takes (``bgsub methods
 METHOD`` lists them), with TOML's types (``history = 200``, ``shadows = false``, ``model =
-"natural"``); a string is read as ``--param`` reads its text. Each error is one line naming the
-file and the key.
+"natural"``); a string is read as ``--param`` reads its text. ``preset = "fast"`` names the
+preset the other values adjust, as ``--preset`` does. Each error is one line naming the file and
+the key.
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ from __future__ import annotations
 import datetime
 import sys
 from pathlib import Path
-from typing import Any, Dict
+from typing import Any, Dict, Optional, Tuple
 
 from bgsub.engines import get_engine_spec
 from bgsub.errors import InputError
@@ -50,19 +51,32 @@ def _value(param: Any, name: str, value: Any) -> Any:
     return value
 
 
-def read_params(path: Any, method: str) -> Dict[str, Any]:
-    """The parameters of engine ``method`` in the TOML file ``path``; :class:`InputError`
-    naming the file (and the key) for a missing or malformed file, an unknown key or a bad
-    value."""
+def read_config(path: Any, method: str) -> Tuple[Optional[str], Dict[str, Any]]:
+    """``(preset, params)`` of engine ``method`` in the TOML file ``path``: the preset its
+    ``preset`` key names (None without one) and the parameters of its other keys;
+    :class:`InputError` naming the file (and the key) for a missing or malformed file, an
+    unknown key, a bad value or a preset the engine does not have."""
     path = Path(path)
     spec = get_engine_spec(method)
+    preset: Optional[str] = None
     params: Dict[str, Any] = {}
     for key, value in _load(path).items():
         name = key.replace("-", "_")
-        if name not in spec.params:
-            raise InputError(f"{path}: key {key!r}: {spec.unknown_param(name)}")
         try:
-            params[name] = _value(spec.params[name], name, value)
+            if name == "preset":
+                preset = _preset(spec, value)
+            elif name in spec.params:
+                params[name] = _value(spec.params[name], name, value)
+            else:
+                raise InputError(spec.unknown_param(name))
         except InputError as err:
             raise InputError(f"{path}: key {key!r}: {err}") from None
-    return params
+    return preset, params
+
+
+def _preset(spec: Any, value: Any) -> str:
+    """``value`` checked as the name of one of ``spec``'s engine presets."""
+    if not isinstance(value, str):
+        raise InputError(f"takes a preset name in quotes (preset = \"fast\"), not {value!r}")
+    spec.preset_values(value)  # (an unknown name, or an engine without presets, is refused)
+    return value

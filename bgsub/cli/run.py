@@ -215,7 +215,8 @@ def _input_notes(args: argparse.Namespace, source: FrameSource, engine: Any) -> 
 
 def run(args: argparse.Namespace) -> int:
     method = _method(args.method)
-    params = run_inputs.engine_params(args, method, run_extras.engine_params(args, method))
+    args.preset, given = run_extras.engine_settings(args, method)  # (a batch reads args.preset)
+    params = run_inputs.engine_params(args, method, given)
     engines.get_engine_spec(method).preset_values(args.preset)  # (refused before any input)
     run_inputs.apply_max_frames(args)
     run_extras.tracker_config(args)  # (refused before any input is opened)

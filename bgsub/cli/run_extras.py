@@ -6,9 +6,9 @@ from __future__ import annotations
 import argparse
 import json
 import math
-from typing import Any, Dict, Optional
+from typing import Any, Dict, Optional, Tuple
 
-from bgsub.cli.param_file import read_params
+from bgsub.cli.param_file import read_config
 from bgsub.errors import InputError
 from bgsub.io.loop import RunStats
 from bgsub.objects import TrackerConfig
@@ -16,7 +16,7 @@ from bgsub.objects import TrackerConfig
 
 def add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--config", metavar="FILE.toml", default=None,
-                        help="engine parameters from a TOML file; -p overrides it")
+                        help="parameters and preset from a TOML file; -p overrides")
     parser.add_argument("--json", action="store_true",
                         help="print the run's (or batch's) summary as JSON on stdout")
     parser.add_argument("--objects", metavar="FILE", default=None,
@@ -25,12 +25,16 @@ def add_options(parser: argparse.ArgumentParser) -> None:
                         help=f"smallest object in pixels (default: {TrackerConfig.min_area})")
 
 
-def engine_params(args: argparse.Namespace, method: str) -> Dict[str, Any]:
-    """The engine's parameters: the --config file's, then --param's over them."""
+def engine_settings(args: argparse.Namespace, method: str) -> Tuple[Optional[str], Dict[str, Any]]:
+    """``(preset, params)`` of the engine: the preset --preset names, else the --config file's;
+    the file's parameters, then --param's over them."""
     from bgsub.cli.compare import parse_method_params  # (METHOD.KEY=VALUE too, as compare)
 
     given = parse_method_params(args.param, [method]).get(method, {})
-    return {**read_params(args.config, method), **given} if args.config else given
+    if not args.config:
+        return args.preset, given
+    preset, params = read_config(args.config, method)
+    return args.preset or preset, {**params, **given}
 
 
 def tracker_config(args: argparse.Namespace) -> TrackerConfig:

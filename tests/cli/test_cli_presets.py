@@ -22,6 +22,21 @@ def pan_clip(tmp_path_factory):
                           n=PAN.n_frames, width=PAN.width, height=PAN.height)
 
 
+@pytest.fixture
+def made_engines(monkeypatch):
+    """The engines ``bgsub run`` makes, in order."""
+    from bgsub import engines
+
+    made = []
+
+    def create_engine(*args, **params):
+        made.append(engines.base.create_engine(*args, **params))
+        return made[-1]
+
+    monkeypatch.setattr(engines, "create_engine", create_engine)
+    return made
+
+
 def _f_measure(masks, scene: SceneSpec) -> float:
     """F of ``masks`` (BGR frames of a mask video) against the scene's ground truth, over the
     frames the scene's temporal ROI scores."""
@@ -41,21 +56,36 @@ def test_each_preset_runs_end_to_end_and_finds_the_objects(preset, pan_clip, tmp
     assert _f_measure(masks, PAN) > 0.5
 
 
-def test_param_and_config_override_the_preset(pan_clip, tmp_path, monkeypatch):
-    from bgsub import engines
-
-    made = []
-
-    def create_engine(*args, **params):
-        made.append(engines.base.create_engine(*args, **params))
-        return made[-1]
-
-    monkeypatch.setattr(engines, "create_engine", create_engine)  # (the run's engine, seen)
+def test_param_and_config_override_the_preset(pan_clip, tmp_path, made_engines):
     config = tmp_path / "settings.toml"
     config.write_text("work_width = 200\nedge_radius = 4\n")
     assert main(["run", str(pan_clip), "-o", str(tmp_path / "m.mkv"), "--preset", "fast",
                  "--config", str(config), "-p", "edge_radius=6", "--max-frames", "2", "-q"]) == 0
-    assert (made[-1].config.work_width, made[-1].config.edge_radius) == (200, 6)
+    assert (made_engines[-1].config.work_width, made_engines[-1].config.edge_radius) == (200, 6)
+
+
+@pytest.mark.parametrize("given, width", [([], 160), (["--preset", "accurate"], 480)])
+def test_a_config_file_names_the_preset_and_preset_overrides_it(given, width, pan_clip,
+                                                                 tmp_path, made_engines):
+    config = tmp_path / "settings.toml"
+    config.write_text('preset = "fast"\nedge_radius = 6\n')
+    assert main(["run", str(pan_clip), "-o", str(tmp_path / "m.mkv"), "--config", str(config),
+                 "--max-frames", "2", "-q"] + given) == 0
+    assert (made_engines[-1].config.work_width, made_engines[-1].config.edge_radius) == (width, 6)
+
+
+@pytest.mark.parametrize("text, method, message", [
+    ('preset = "fsat"', "grbm", "key 'preset': unknown preset 'fsat' for grbm; did you mean"),
+    ("preset = 3", "grbm", "key 'preset': takes a preset name in quotes"),
+    ('preset = "fast"', "mog2", "key 'preset': method 'mog2' has no presets"),
+])
+def test_a_bad_preset_in_a_config_file_is_one_error_line(text, method, message, tmp_path,
+                                                         bgsub_error):
+    config = tmp_path / "settings.toml"
+    config.write_text(text + "\n")
+    err = bgsub_error(["run", "missing.avi", "-o", "masks.mkv", "-m", method,
+                       "--config", config])
+    assert f"{config}: {message}" in err
 
 
 @pytest.mark.parametrize("command", [

@@ -11,7 +11,7 @@ __all__ = ["fast_median", "is_affine", "through_bgra", "warp_image"]
 
 
 def fast_median(a: np.ndarray) -> Any:
-    """``np.median(a, axis=0)`` of a finite ``(K,)`` or ``(K, C)`` float array (K >= 1),
+    """``np.median(a, axis=0)`` of a ``(K,)`` or ``(K, C)`` float array without NaN (K >= 1),
     computed as numpy computes it (the same partition, the mean of the middle one or two values
     in ``a``'s precision) without its per-call overhead, which on a frame's few hundred or few
     thousand values is most of a median's cost: a scalar of ``a``'s dtype for ``(K,)``, a

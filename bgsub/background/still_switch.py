@@ -142,7 +142,7 @@ class StillCameraSwitch:
             excess = (_foreground_fraction(score, seeing)
                       - self.still_versus * _foreground_fraction(compensated_score, seeing))
         self._votes.append((fraction, snr, excess))
-        fraction, _, excess = np.median(np.array(self._votes), axis=0)
+        fraction, _, excess = fast_median(np.array(self._votes))
         self.camera_still = bool(fraction < self.still_model and excess <= SAMPLE_SLACK)
         return score if self.camera_still else None
 
@@ -158,9 +158,9 @@ class StillCameraSwitch:
         steps = np.array(self._steps)
         if not np.isfinite(steps).all():
             return False
-        typical = np.median(steps, axis=0)
+        typical = fast_median(steps)
         size = float(np.hypot(*typical))
-        spread = float(np.median(np.hypot(*(steps - typical).T)))
+        spread = float(fast_median(np.hypot(*(steps - typical).T)))
         return size >= STEADY_PX and spread <= self.steady * size
 
 

@@ -64,7 +64,7 @@ def test_param_and_config_override_the_preset(pan_clip, tmp_path, made_engines):
     assert (made_engines[-1].config.work_width, made_engines[-1].config.edge_radius) == (200, 6)
 
 
-@pytest.mark.parametrize("given, width", [([], 160), (["--preset", "accurate"], 480)])
+@pytest.mark.parametrize("given, width", [([], 160), (["--preset", "balanced"], 320)])
 def test_a_config_file_names_the_preset_and_preset_overrides_it(given, width, pan_clip,
                                                                  tmp_path, made_engines):
     config = tmp_path / "settings.toml"
@@ -125,7 +125,7 @@ def test_methods_lists_each_preset_with_its_values(capsys):
          "still_pause=1,", "flow_boost=1.0,", "grow_above=0.8,",
          "lookback=45"],
         ["balanced", "the", "defaults"],
-        ["accurate", "work_width=480"]]
+        ["accurate", "edge_step=1"]]
 
 
 def test_methods_json_holds_the_presets(capsys):
@@ -136,7 +136,7 @@ def test_methods_json_holds_the_presets(capsys):
                                          "violation_threshold": 0.375, "overlap": 0,
                                          "still_pause": 1, "flow_boost": 1.0,
                                          "grow_above": 0.8, "lookback": 45},
-                                "balanced": {}, "accurate": {"work_width": 480}}
+                                "balanced": {}, "accurate": {"edge_step": 1}}
 
 
 def test_methods_shows_no_presets_for_an_engine_without_them(capsys):

@@ -22,15 +22,15 @@ def test_each_moving_engine_has_the_three_presets_of_its_front_end(method):
     assert presets == FRONT_ENDS[method].presets
 
 
-def test_the_gated_rbm_has_a_fast_preset_of_its_own_and_the_base_others():
+def test_the_gated_rbm_has_fast_and_accurate_presets_of_its_own():
     assert GrbmFrontEnd.presets["fast"] == {"work_width": 160, "stride": 16, "overlay": 0,
                                             "edge_radius": 4, "ransac_threshold": 0.5,
                                             "violation_threshold": 0.375, "overlap": 0,
                                             "still_pause": 1, "flow_boost": 1.0,
                                             "grow_above": 0.8, "lookback": 45}
+    assert GrbmFrontEnd.presets["accurate"] == {"edge_step": 1}
+    assert GrbmFrontEnd.presets["balanced"] == MotionFrontEnd.presets["balanced"]
     assert LucasKanadeFrontEnd.presets == MotionFrontEnd.presets
-    for name in ("balanced", "accurate"):
-        assert GrbmFrontEnd.presets[name] == MotionFrontEnd.presets[name]
 
 
 @pytest.mark.parametrize("method", MOVING)
@@ -39,12 +39,13 @@ def test_balanced_is_the_defaults(method):
     assert create_engine(method, preset="balanced").config == create_engine(method).config
 
 
-@pytest.mark.parametrize("method, preset, width, radius", [
-    ("grbm", "fast", 160, 4), ("compensated", "fast", 160, 0),
-    ("grbm", "accurate", 480, 8), ("compensated", "accurate", 480, 8)])
-def test_a_preset_builds_the_engine_with_its_values(method, preset, width, radius):
+@pytest.mark.parametrize("method, preset, width, radius, step", [
+    ("grbm", "fast", 160, 4, 2), ("compensated", "fast", 160, 0, 2),
+    ("grbm", "accurate", 320, 8, 1), ("compensated", "accurate", 480, 8, 2)])
+def test_a_preset_builds_the_engine_with_its_values(method, preset, width, radius, step):
     engine = create_engine(method, preset=preset)
-    assert (engine.config.work_width, engine.config.edge_radius) == (width, radius)
+    config = engine.config
+    assert (config.work_width, config.edge_radius, config.edge_step) == (width, radius, step)
 
 
 def test_the_gated_rbm_fast_preset_reaches_its_stages():

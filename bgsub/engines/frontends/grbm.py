@@ -146,13 +146,17 @@ class GrbmFrontEnd(MotionFrontEnd):
     #: vectors, a sixteenth of ``balanced``'s, are coarse evidence: they boost the background
     #: score less (``flow_boost``), and a blob grows over its objects' colours a little more
     #: readily (``grow_above``). A model at this size takes longer to find its objects, so the
-    #: twin that makes the first masks reads further ahead (``lookback``).
+    #: twin that makes the first masks reads further ahead (``lookback``). Its ``accurate``
+    #: fits the edge placement's guided filter on every pixel of the mask and frame
+    #: (``edge_step=1``): a larger working size takes the subjects the camera follows into the
+    #: parallax field and scores below ``balanced`` on real footage (docs/decisions.md).
     presets = MappingProxyType({
         **MotionFrontEnd.presets,
         "fast": {"work_width": 160, "stride": 16, "overlay": 0, "edge_radius": 4,
                  "ransac_threshold": 0.5, "violation_threshold": 0.375, "overlap": 0,
                  "still_pause": 1, "flow_boost": 1.0, "grow_above": 0.8,
                  "lookback": 45},
+        "accurate": {"edge_step": 1},
     })
 
     def __init__(self, config: Optional[GrbmConfig] = None, *,

@@ -21,6 +21,7 @@ over background the model has seen is never healed this way, whatever its colour
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 from typing import Optional
 
@@ -168,6 +169,23 @@ class CompensatedBackground:
         # a pixel half-inside inherit a lower age, which is the cautious side.
         self.age = move(self.age, cv2.INTER_LINEAR, cv2.BORDER_CONSTANT)
         self.seen = move(self.seen, cv2.INTER_LINEAR, cv2.BORDER_CONSTANT)
+
+    def warped_copy(self, matrix: np.ndarray,
+                    parallax: Optional[FieldWarp] = None) -> "CompensatedBackground":
+        """A copy of the model moved by ``matrix`` (3, 3) and ``parallax`` as :meth:`warp`
+        would move it (bilinearly), this model left as it is."""
+        other = copy.copy(self)  # warp() replaces the arrays, it does not write into them
+        other.warp(matrix, parallax=parallax)
+        return other
+
+    def adopt(self, others: list, where: list) -> None:
+        """Take the model of each of ``others`` (models of this one's size, as
+        :meth:`warped_copy` makes them) at its ``where`` ((H, W) uint8, nonzero: take it),
+        in place (in the arrays the last :meth:`warp` made)."""
+        for other, mask in zip(others, where):
+            for name in ("mean", "var", "age", "seen"):
+                cv2.copyTo(getattr(other, name), mask, getattr(self, name))
+        self._diff = None
 
     def forget_partly_seen(self, matrix: np.ndarray) -> None:
         """After a frozen model's :meth:`warp` by ``matrix`` (3, 3): pixels that the previous

@@ -25,6 +25,7 @@ import numpy as np
 from bgsub._util import FieldWarp
 from bgsub.background.compensated import CompensatedBackground
 from bgsub.background.fusion import Fusion
+from bgsub.background.layers import LayerWarps, choose_layers
 from bgsub.background.object_colour import ObjectColours
 from bgsub.background.persistence import BlobPersistence
 from bgsub.background.scene_cut import SceneCut
@@ -154,10 +155,13 @@ class Foreground:
 
     def compare(self, work: np.ndarray, prev: np.ndarray, result: MotionResult,
                 matrix: np.ndarray, applied: np.ndarray, *, frozen: bool,
-                fixed: bool, parallax: Optional[FieldWarp] = None) -> Comparison:
+                fixed: bool, parallax: Optional[FieldWarp] = None,
+                layers: Optional[LayerWarps] = None) -> Comparison:
         """The :class:`Comparison` of ``work`` (the frame, (h, w[, 3]) uint8; ``prev`` the
         previous one) with the model warped by ``applied`` (3, 3; a ``frozen`` model is warped
-        sharp and forgets what the previous frame saw only in part); the motion evidence of
+        sharp and forgets what the previous frame saw only in part) and the ``parallax`` field,
+        or block by block by the better of it and the ``layers``' warps
+        (:func:`~bgsub.background.layers.choose_layers`); the motion evidence of
         ``result``'s vectors and of the frames, against the camera's ``matrix`` (3, 3), the
         vectors' with the fixed violation threshold when ``fixed`` (a refused small region's
         vectors are one consistent motion, not noise about the camera's)."""
@@ -170,12 +174,17 @@ class Foreground:
         # The frames' evidence is the longer job: the vectors' map is made in this thread.
         with self.alongside(evidence):
             # (A held-back motion is applied later, with the plane's motion alone.)
-            self.bg.warp(applied, sharp=frozen,
-                         parallax=parallax if np.array_equal(applied, matrix) else None)
+            move = parallax if np.array_equal(applied, matrix) else None
+            others = ([] if move is None or layers is None or frozen else
+                      [self.bg.warped_copy(applied, warp) for warp in layers.warps])
+            self.bg.warp(applied, sharp=frozen, parallax=move)
             if frozen:
                 self.bg.forget_partly_seen(applied)
             exposed, gain = self.exposure(work, self.bg)
             score = self.bg.score(exposed)
+            if others:
+                score = choose_layers(self.bg, others, exposed, score, block=layers.block,
+                                      keep=layers.keep)
             vectors = self.fusion.vector_evidence(
                 result.points, result.disp, result.evidence_weights, matrix, work.shape[:2],
                 noise_scale=0.0 if fixed else None)

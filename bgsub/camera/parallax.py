@@ -27,7 +27,7 @@ from typing import Any, Optional
 import cv2
 import numpy as np
 
-from bgsub._util import cell_index
+from bgsub._util import FieldWarp, cell_index
 from bgsub.camera.near_layer import NEAR_REACH, NearLayer, leading_layer, probed_layer
 from bgsub.motion.global_motion import apply_homography
 from bgsub.settings import check_settings, setting
@@ -99,6 +99,14 @@ class ParallaxConfig:
                                          "field that showed it: the finest level alone, "
                                          "pre-warped by the plane, reads it wrong near the "
                                          "edge of the model's 4 px range (0 = off)", low=0)
+    parallax_layers: int = setting(9, "where the field stands, the background model is also "
+                                      "warped by the plane alone and by the field with each "
+                                      "cell's depth the least and the greatest of its 3 x 3 "
+                                      "neighbours', and each block of this many px a side "
+                                      "(outside the last mask) takes the warp that explains "
+                                      "the frame best: the cells' field is smooth across an "
+                                      "occlusion, the scene is not (0 = the field alone)",
+                                   low=0)
     parallax_probe: float = setting(0.15, "where no parallax field stands and at least this "
                                           "share of the vectors scatter off the fit by over "
                                           "1 px, the frame is read a second time pre-warped by "
@@ -194,6 +202,7 @@ class ParallaxField:
         self.memory: Optional[tuple] = None  # (gamma (gh, gw) float32, known (gh, gw) uint8)
         self.epipole: Optional[np.ndarray] = None  # (3,) of the last field made
         self.edges: Optional[np.ndarray] = None  # (h, w) float32 of it: _depth_edges
+        self.depths: Optional[np.ndarray] = None  # (gh, gw) float32: its cells' depths
         self.share = 0.0  # the share of the vectors' weight it explained, 0 without one
         self.since = _LONG_AGO  # frames since the last field (0: the last frame had one)
         self.layer: Optional[NearLayer] = None  # the last near layer seen ahead of the plane
@@ -211,6 +220,19 @@ class ParallaxField:
         score *= 1 - np.float32(self.config.parallax_edges) * self.edges
         if violation is not None:
             violation -= self.edges * (violation - np.float32(0.5))
+
+    def neighbour_warps(self, matrix: np.ndarray, shape: tuple) -> list:
+        """The other warps the background may follow beside the last field's, for a frame of
+        ``shape`` (h, w) and the camera's ``matrix`` (3, 3): None (the plane alone), then
+        :class:`~bgsub._util.FieldWarp` s with each cell's depth the least and the greatest
+        of its 3 x 3 neighbours'. An occlusion's two sides each take one of them, where the
+        field, a median, is between the two. Empty without a field or with
+        ``parallax_layers=0``."""
+        if self.depths is None or self.config.parallax_layers == 0:
+            return []
+        k = np.ones((3, 3), np.uint8)
+        return [None] + [FieldWarp(matrix, self._field(near(self.depths, k), self.epipole, shape))
+                         for near in (cv2.erode, cv2.dilate)]
 
     def restart(self) -> None:
         """Forget the scene's depths (a new shot)."""
@@ -280,7 +302,7 @@ class ParallaxField:
     def _estimate(self, points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
                   matrix: np.ndarray, shape: tuple, *,
                   foreground: Optional[np.ndarray]) -> Optional[np.ndarray]:
-        self.epipole = self.edges = None
+        self.epipole = self.edges = self.depths = None
         self.share = 0.0
         self._carry(matrix)
         if self.config.parallax == 0 or len(points) < 8:
@@ -308,7 +330,7 @@ class ParallaxField:
         left = np.hypot(*(v.res - _read(field, v.now)).T) <= self.config.parallax_min
         if not self._enough(v, v.big & left):
             return None
-        self.epipole, self.share = e, v.share(v.big & left)
+        self.epipole, self.share, self.depths = e, v.share(v.big & left), depths
         self.edges = _depth_edges(depths, shape, self.config.parallax_cell)
         return field
 

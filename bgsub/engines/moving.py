@@ -42,6 +42,7 @@ from bgsub.background.exposure import match_exposure, same_exposure
 from bgsub.background.foreground import Foreground, ForegroundConfig
 from bgsub.background.fusion import Fusion, FusionConfig
 from bgsub.background.guided import guided_mask
+from bgsub.background.layers import LayerWarps
 from bgsub.background.object_colour import ObjectColours
 from bgsub.background.overlay import OverlayConfig, OverlayDetector
 from bgsub.background.persistence import BlobPersistence
@@ -308,7 +309,8 @@ class MovingCameraEngine(Engine):
         seen, parallax = self._parallax(seen, gray.shape)
         compared = self.foreground.compare(work, prev.work, seen.result, seen.matrix,
                                            seen.applied, frozen=frozen, fixed=seen.refused,
-                                           parallax=parallax)
+                                           parallax=parallax,
+                                           layers=self._layers(seen, parallax, gray.shape))
         if parallax is not None:
             self.parallax.discount_edges(compared.score, compared.violation)
         young = self._region.unwatched(self.foreground.young())
@@ -338,6 +340,16 @@ class MovingCameraEngine(Engine):
         if field is None:
             return seen, None
         return seen._replace(result=without_parallax(r, field)), FieldWarp(seen.matrix, field)
+
+    def _layers(self, seen: Any, parallax: Optional[FieldWarp],
+                shape: tuple) -> Optional[LayerWarps]:
+        """The other warps the background may take, block by block, where a parallax field
+        stands (:mod:`bgsub.background.layers`), or None."""
+        warps = [] if parallax is None else self.parallax.neighbour_warps(seen.matrix, shape)
+        if not warps:
+            return None
+        return LayerWarps(tuple(warps), self.parallax.config.parallax_layers,
+                          self.previous.mask)
 
     @property
     def _region(self) -> Any:

@@ -205,3 +205,19 @@ def test_a_post_across_the_camera_path_keeps_its_own_parallax():
     _, plain = _field(4, ParallaxConfig(parallax_posts=0), **post)
     assert abs(field[60, 164, 0] + 1.6) < 0.4  # its departure from the plane
     assert abs(plain[60, 164, 0]) < 0.4  # lost in the 5 x 5 median
+
+
+def test_the_neighbour_warps_hold_each_side_of_a_depth_edge():
+    parallax, _ = _field(4)
+    plane, least, greatest = parallax.neighbour_warps(PAN, SHAPE)
+    assert plane is None  # the plane alone
+    # The band's top (row 168): one warp takes the far layer's depth, the other the band's
+    # 2 px beyond it; in the far layer (row 40) they agree.
+    assert abs(abs(least.map_x[168, 160] - greatest.map_x[168, 160]) - 2.0) < 0.5
+    assert abs(least.map_x[40, 160] - greatest.map_x[40, 160]) < 0.1
+
+
+def test_no_neighbour_warps_without_a_field_or_with_parallax_layers_zero():
+    assert ParallaxField(ParallaxConfig()).neighbour_warps(PAN, SHAPE) == []
+    off, _ = _field(4, ParallaxConfig(parallax_layers=0))
+    assert off.neighbour_warps(PAN, SHAPE) == []

@@ -101,7 +101,7 @@ class ParallaxConfig:
                                          "edge of the model's 4 px range (0 = off)", low=0)
     parallax_layers: int = setting(9, "where the field stands, the background model is also "
                                       "warped by the plane alone and by the field with each "
-                                      "cell's depth the least and the greatest of its 3 x 3 "
+                                      "cell's depth the least and the greatest of its 5 x 5 "
                                       "neighbours', and each block of this many px a side "
                                       "(outside the last mask) takes the warp that explains "
                                       "the frame best: the cells' field is smooth across an "
@@ -225,12 +225,12 @@ class ParallaxField:
         """The other warps the background may follow beside the last field's, for a frame of
         ``shape`` (h, w) and the camera's ``matrix`` (3, 3): None (the plane alone), then
         :class:`~bgsub._util.FieldWarp` s with each cell's depth the least and the greatest
-        of its 3 x 3 neighbours'. An occlusion's two sides each take one of them, where the
+        of its 5 x 5 neighbours'. An occlusion's two sides each take one of them, where the
         field, a median, is between the two. Empty without a field or with
         ``parallax_layers=0``."""
         if self.depths is None or self.config.parallax_layers == 0:
             return []
-        k = np.ones((3, 3), np.uint8)
+        k = np.ones((5, 5), np.uint8)  # the reach of the cells' 5 x 5 median
         return [None] + [FieldWarp(matrix, self._field(near(self.depths, k), self.epipole, shape))
                          for near in (cv2.erode, cv2.dilate)]
 

@@ -310,7 +310,8 @@ class MovingCameraEngine(Engine):
         compared = self.foreground.compare(work, prev.work, seen.result, seen.matrix,
                                            seen.applied, frozen=frozen, fixed=seen.refused,
                                            parallax=parallax,
-                                           layers=self._layers(seen, parallax, gray.shape))
+                                           layers=None if frozen else
+                                           self._layers(seen, parallax, gray.shape))
         if parallax is not None:
             self.parallax.discount_edges(compared.score, compared.violation)
         young = self._region.unwatched(self.foreground.young())

@@ -99,7 +99,7 @@ class ParallaxConfig:
                                          "field that showed it: the finest level alone, "
                                          "pre-warped by the plane, reads it wrong near the "
                                          "edge of the model's 4 px range (0 = off)", low=0)
-    parallax_layers: int = setting(9, "where the field stands, the background model is also "
+    parallax_layers: int = setting(6, "where the field stands, the background model is also "
                                       "warped by the plane alone and by the field with each "
                                       "cell's depth the least and the greatest of its 5 x 5 "
                                       "neighbours', and each block of this many px a side "

@@ -182,17 +182,18 @@ def write_mp4_clip(path, *, seed=0, n=20, width=64, height=48):
     return _write_box_video(path, "mp4v", speed=2, seed=seed, n=n, width=width, height=height)
 
 
-def write_pan_clip(path, *, seed=0, n=30, width=320, height=240):
-    """A Motion-JPEG ``.avi`` of ``n`` frames of the ``bgsub samples`` pan scene (camera panning
-    2-5 px a frame, objects crossing); returns ``path``."""
+def write_pan_clip(path, *, seed=0, n=30, width=320, height=240, fourcc="MJPG", burn_in=None):
+    """An ``.avi`` (``fourcc``, Motion-JPEG by default) of ``n`` frames of the ``bgsub samples``
+    pan scene (camera panning 2-5 px a frame, objects crossing), each frame passed through
+    ``burn_in`` (image -> image: a logo, a watermark) when given; returns ``path``."""
     import cv2
 
     from bgsub.samples import SceneSpec, render_frames
 
-    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 25, (width, height))
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*fourcc), 25, (width, height))
     for frame in render_frames(SceneSpec("pan", seed=seed, width=width, height=height,
                                          n_frames=n)):
-        writer.write(frame.image)
+        writer.write(frame.image if burn_in is None else burn_in(frame.image))
     writer.release()
     return path
 

@@ -16,6 +16,11 @@ flat, with no textured pixel: :class:`~bgsub.background.bars.BlackBars` finds th
 rows and columns, in every frame where the camera moved. The engine then leaves the overlay's
 vectors out of the fit and the evidence, calls no foreground there and keeps no history of it in
 the model (``CompensatedBackground.forget``).
+
+A semi-transparent overlay (a watermark word) is not left out: the scene and the objects that
+pass under it show through it. :class:`~bgsub.background.see_through.SeeThrough` finds it among
+the pieces sharp in the running mean, and :meth:`OverlayDetector.unveil` maps its pixels back to
+the scene in each frame before the engine looks at it.
 """
 
 from __future__ import annotations
@@ -30,6 +35,7 @@ import numpy as np
 from bgsub.background.bars import BlackBars
 from bgsub.background.evidence import cell_index, cells_to_pixels
 from bgsub.background.morphology import kernel
+from bgsub.background.see_through import SeeThrough
 from bgsub.settings import check_settings, setting
 
 __all__ = ["OverlayConfig", "OverlayDetector"]
@@ -51,6 +57,10 @@ class OverlayConfig:
                                   "frames before (a small lag misses slow pans)", low=1, high=30)
     overlay_noise: float = setting(6.0, "... within this many gray levels (after a 3x3 blur)",
                                    above=0)
+    see_through: int = setting(1, "1 = a semi-transparent overlay (a watermark word) is found "
+                                  "and taken out of each frame, so that the scene and the "
+                                  "objects under it are watched; 0 = left in the frames",
+                               low=0, high=1)
 
     def __post_init__(self) -> None:
         check_settings(self)
@@ -115,6 +125,7 @@ class OverlayDetector:
         self._still: Optional[np.ndarray] = None  # (gh, gw) float32: cells' vector motion
         self._found: Optional[np.ndarray] = None  # (h, w) bool: the textured overlays
         self._bars = BlackBars()  # letterbox and pillarbox bars (flat: no pixel is textured)
+        self._see_through = SeeThrough(CELL)  # semi-transparent ones (a watermark word)
         self._shown: tuple = (None, None)  # the bars and found overlays self.mask is of
         self.mask = None
 
@@ -123,16 +134,24 @@ class OverlayDetector:
         return self.config.overlay > 0
 
     def observe(self, gray: np.ndarray, points: np.ndarray, disp: np.ndarray,
-                weights: np.ndarray, *, camera_still: bool = False) -> None:
-        """Take in the working-size frame ``gray`` ((h, w) uint8) and the front end's vectors
-        (``points`` and ``disp`` (N, 2), ``weights`` (N,); previous-frame positions).
-        ``camera_still``: the engine takes the camera as still (a flock of birds before a
-        still camera moves as one, yet the background holding still is no overlay)."""
+                weights: np.ndarray, *, camera_still: bool = False,
+                matrix: Optional[np.ndarray] = None) -> None:
+        """Take in the working-size frame ``gray`` ((h, w) uint8, as it came: before
+        :meth:`unveil`) and the front end's vectors (``points`` and ``disp`` (N, 2), ``weights``
+        (N,); previous-frame positions). ``camera_still``: the engine takes the camera as still
+        (a flock of birds before a still camera moves as one, yet the background holding still
+        is no overlay). ``matrix``: the camera's motion from the last frame ((3, 3), working
+        px) when it was fitted; without it no semi-transparent overlay is looked for."""
         if not self.enabled:
             return
         blurred = cv2.blur(gray, (3, 3))
         if len(self._history) == self._history.maxlen and not camera_still:
-            self._learn(blurred, self._history[0], points, disp, weights)
+            moved = self._learn(blurred, self._history[0], points, disp, weights)
+            if moved and matrix is not None and self.config.see_through:
+                self._see_through.observe(blurred, self._history[-1], matrix, points, disp,
+                                          weights)
+        if matrix is not None and not camera_still and self.config.see_through:
+            self._see_through.take_in(gray)
         self._history.append(blurred)
         if not camera_still:  # (as the textured ones: a still camera drags nothing)
             self._bars.observe(gray)
@@ -145,21 +164,23 @@ class OverlayDetector:
                 bars if self._found is None else bars | self._found)
 
     def _learn(self, cur: np.ndarray, old: np.ndarray, points: np.ndarray, disp: np.ndarray,
-               weights: np.ndarray) -> None:
+               weights: np.ndarray) -> bool:
+        """Learn from the blurred frame ``cur`` and ``old``, ``overlay_lag`` frames before it;
+        whether the frame informed (its scene moved as one: a moving camera)."""
         c = self.config
         gradient = _gradient(cur)
         textured = gradient > TEXTURED
         n_textured = int(np.count_nonzero(textured))
         if n_textured == 0:
-            return
+            return False
         fixed = (cv2.absdiff(cur, old) <= c.overlay_noise) & textured
         changed = 1.0 - np.count_nonzero(fixed) / n_textured
         moved = textured & ~fixed
         if changed < CHANGED_SHARE:
-            return
+            return False
         step = _coherent_motion(points, disp, weights, moved)
         if step == 0.0:
-            return
+            return False
         self._travelled += step
         if self._fixed is None:
             self._fixed = np.zeros(cur.shape, np.float32)
@@ -175,10 +196,13 @@ class OverlayDetector:
         cv2.accumulateWeighted(gradient, self._edges, rate)
         found = (self._seen >= c.overlay_frames) & (self._fixed >= c.overlay * self._seen)
         if self._travelled >= TRAVELLED_PX:
-            found |= self._sharp_in_mean()
+            sharp = self._sharp_in_mean()
+            found |= sharp
+            self._see_through.find(sharp, _gradient(self._mean) > TEXTURED / 2, least=MIN_PIECE)
         found &= self._motionless(cur.shape)
         grown = _grown(found) if found.any() else None
         self._found = grown if grown is not None and grown.any() else None
+        return True
 
     def _learn_cells(self, points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
                      shape: tuple) -> None:
@@ -211,6 +235,14 @@ class OverlayDetector:
         sharp = _gradient(self._mean)
         return (sharp >= SHARP_RATIO * self._edges) & (sharp > TEXTURED)
 
+    def unveil(self, work: np.ndarray, gray: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        """``(work, gray)``, a working-size frame (h, w[, 3]) and its gray image (uint8),
+        with the semi-transparent overlays found mapped back to the scene they show; as they
+        are while none is found."""
+        if not self.enabled:
+            return work, gray
+        return self._see_through.unveil(work, gray)
+
     def forget_in(self, model: Any) -> None:
         """Drop the history of the overlay pixels in ``model`` (a
         :class:`~bgsub.background.compensated.CompensatedBackground`), if any are found."""
@@ -219,9 +251,19 @@ class OverlayDetector:
 
     def box(self) -> Optional[Tuple[int, int, int, int]]:
         """``(x, y, w, h)`` around the overlay in working-size pixels, or None."""
-        if self.mask is None:
-            return None
-        return tuple(int(v) for v in cv2.boundingRect(self.mask.view(np.uint8)))
+        return _box(self.mask)
+
+    def see_through_box(self) -> Optional[Tuple[int, int, int, int]]:
+        """``(x, y, w, h)`` around the semi-transparent overlay (working-size pixels) that
+        :meth:`unveil` maps back to the scene, or None."""
+        return _box(self._see_through.region)
+
+
+def _box(mask: Optional[np.ndarray]) -> Optional[Tuple[int, int, int, int]]:
+    """``(x, y, w, h)`` around the ``(h, w) bool`` ``mask``, or None."""
+    if mask is None:
+        return None
+    return tuple(int(v) for v in cv2.boundingRect(mask.view(np.uint8)))
 
 
 def _gradient(gray: np.ndarray) -> np.ndarray:

@@ -211,6 +211,12 @@ def _input_notes(args: argparse.Namespace, source: FrameSource, engine: Any) -> 
         common.note(f"frame-fixed overlays (a logo, a watermark, a timestamp, black bars) "
                     f"found within {w}x{h} at ({x}, {y}): taken as background; --roi chooses "
                     "the watched region instead", quiet=args.quiet)
+    box = getattr(engine, "see_through_box", None)
+    if box:
+        x, y, w, h = box
+        common.note(f"a semi-transparent overlay (a watermark) found within {w}x{h} at ({x}, "
+                    f"{y}): seen through, the scene and objects under it still watched",
+                    quiet=args.quiet)
 
 
 def run(args: argparse.Namespace) -> int:

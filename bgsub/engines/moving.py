@@ -230,8 +230,11 @@ class MovingCameraEngine(Engine):
         self._in_shape = image.shape
         self.camera.known.next_frame()
         with limited_threads(self.config.threads):
-            work, smoothed, gray = working_frames(image, self.config)
-            mask = self._step(smoothed, gray, rate)
+            work, smoothed, as_came = working_frames(image, self.config)
+            # (a region of interest given replaces the overlays' detection)
+            smoothed, gray = ((smoothed, as_came) if self.roi is not None
+                              else self.overlays.unveil(smoothed, as_came))
+            mask = self._step(smoothed, gray, rate, as_came=as_came)
             out = place_mask(mask, work, image, self.config)
         self.previous.frame, self.previous.mask = work, mask
         if self._early:
@@ -284,9 +287,11 @@ class MovingCameraEngine(Engine):
 
     # ------------------------------------------------------------------ one frame
 
-    def _step(self, work: np.ndarray, gray: np.ndarray, rate: float) -> np.ndarray:
+    def _step(self, work: np.ndarray, gray: np.ndarray, rate: float, *,
+              as_came: np.ndarray) -> np.ndarray:
         """One frame at the working size through the stages: ``work`` is the frame (BGR or
-        gray uint8, blurred by ``smooth``), ``gray`` its (h, w) uint8 gray image, ``rate`` the
+        gray uint8, blurred by ``smooth``, a semi-transparent overlay taken out), ``gray`` its
+        (h, w) uint8 gray image (``as_came`` before the overlay was taken out), ``rate`` the
         checked learning rate (0: a frozen model). Returns the (h, w) uint8 0/255 mask."""
         prev = self.previous
         prev.result = prev.applied = prev.gain = prev.parallax = None
@@ -304,7 +309,7 @@ class MovingCameraEngine(Engine):
             return empty
         frozen = rate == 0.0
         cur = self.frontend.frame_data(gray)
-        seen = self.camera.decide(self._motion(cur, gray), gray, self.bg, frozen=frozen)
+        seen = self.camera.decide(self._motion(cur, gray, as_came), gray, self.bg, frozen=frozen)
         prev.result = seen.result
         seen, parallax = self._parallax(seen, gray.shape)
         compared = self.foreground.compare(work, prev.work, seen.result, seen.matrix,
@@ -358,12 +363,13 @@ class MovingCameraEngine(Engine):
         so far (:class:`~bgsub.engines.roi.FrameLess`), or the whole frame."""
         return self.roi or self._frame_less.of(self.overlays.mask)
 
-    def _motion(self, cur: Any, gray: np.ndarray) -> MotionResult:
+    def _motion(self, cur: Any, gray: np.ndarray, as_came: np.ndarray) -> MotionResult:
         """The motion stage: the front end's motion from the previous frame to ``cur``, while
         the second thread applies the last frame's update and prepares ``cur`` for the next
-        pair; over the region of interest's vectors only. In a 3-D scene (a parallax field
-        lately) the fit keeps its plane (``parallax_hold``), and a near layer that moves beyond
-        the read's reach is read again (``parallax_layer``)."""
+        pair; over the region of interest's vectors only; the overlay detector looks at the
+        frame ``as_came`` (before a see-through overlay was taken out). In a 3-D scene (a
+        parallax field lately) the fit keeps its plane (``parallax_hold``), and a near layer
+        that moves beyond the read's reach is read again (``parallax_layer``)."""
         hold = self.parallax.config.parallax_hold if self.parallax.standing() else 0.0
         fit, prior = self.camera.fit_for(self._in_shape, gray.shape, hold=hold)
         fit = self._region.restrict_fit(fit)
@@ -376,8 +382,9 @@ class MovingCameraEngine(Engine):
             result = self.frontend.measure(self.previous.data, cur, prior=prior, fit=fit)
             result = self._read_layer(cur, result, prior=prior, fit=fit, shape=gray.shape)
         if self.roi is None:  # (a region of interest given replaces the overlays' detection)
-            self.overlays.observe(gray, result.points, result.disp, result.weights,
-                                  camera_still=self.camera_still)
+            self.overlays.observe(as_came, result.points, result.disp, result.weights,
+                                  camera_still=self.camera_still,
+                                  matrix=result.motion.matrix if result.motion.ok else None)
         return self._region.restrict(result, gray.shape)
 
     def _read_layer(self, cur: Any, result: MotionResult, *, prior: Optional[np.ndarray],
@@ -440,11 +447,20 @@ class MovingCameraEngine(Engine):
     def overlay_box(self) -> Optional[tuple]:
         """``(x, y, w, h)`` in input pixels around the frame-fixed overlays found (a logo, a
         watermark, a timestamp, letterbox bars: taken as background), or None."""
-        box = self.overlays.box()
-        if box is None or self._in_shape is None:
+        return self._input_box(self.overlays.box())
+
+    def _input_box(self, box: Optional[tuple]) -> Optional[tuple]:
+        """A ``(x, y, w, h)`` box of working-size pixels in input pixels."""
+        if box is None or self._in_shape is None or self.previous.gray is None:
             return box
-        scale = self._in_shape[1] / self.overlays.mask.shape[1]
+        scale = self._in_shape[1] / self.previous.gray.shape[1]
         return tuple(int(round(v * scale)) for v in box)
+
+    @property
+    def see_through_box(self) -> Optional[tuple]:
+        """``(x, y, w, h)`` in input pixels around the semi-transparent overlay found (a
+        watermark word), which each frame is mapped back to the scene under, or None."""
+        return self._input_box(self.overlays.see_through_box())
 
     @property
     def last_result(self) -> Optional[MotionResult]:

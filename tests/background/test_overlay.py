@@ -9,6 +9,8 @@ from bgsub import create_engine
 from bgsub.background.overlay import OverlayConfig, OverlayDetector
 from bgsub.samples import SceneSpec, render_frames
 
+from helpers import write_pan_clip
+
 # The logo: an opaque box with a word in it, fixed in the frame's top-left corner.
 BOX = (8, 8, 96, 40)  # x, y, w, h
 
@@ -104,11 +106,7 @@ def test_the_detector_needs_a_moving_scene():
 def test_bgsub_run_reports_the_overlay_once(tmp_path, capsys):
     from bgsub.cli import main
 
-    clip = tmp_path / "logo.avi"
-    writer = cv2.VideoWriter(str(clip), cv2.VideoWriter_fourcc(*"FFV1"), 25.0, (320, 240))
-    for image, _, _ in render_frames(SceneSpec("pan", seed=1, n_frames=50)):
-        writer.write(with_logo(image))
-    writer.release()
+    clip = write_pan_clip(tmp_path / "logo.avi", seed=1, n=50, fourcc="FFV1", burn_in=with_logo)
     assert main(["run", str(clip), "-o", str(tmp_path / "masks.mkv")]) == 0
     err = capsys.readouterr().err
     assert err.count("frame-fixed overlays") == 1

@@ -1,0 +1,257 @@
+"""A semi-transparent overlay, and the scene seen through it (:class:`SeeThrough`).
+
+A watermark word burnt in at a third of full opacity is fixed in the frame, yet the scene
+streams through it: each of its pixels is ``gain * scene + offset``, the gain and the offset its
+own (the word's opacity and colour, its anti-aliased rim). Its patches' vectors read a mixture of
+no motion and the camera's, so the overlay detector's test (vectors that read no motion) passes
+it by, while the frames' running mean keeps its letters sharp; the moving camera's model drags
+the letters over the scene, and they come out as foreground.
+
+*Finding it.* Among the pieces that stay sharp in the running mean (on the frames where the
+camera moved), a see-through letter is one
+
+* whose edge holds still in the frame: there the last frame as it was explains the frame
+  clearly better than the last frame moved by the camera (a scene's edge along the camera's path
+  moves with the camera);
+* with the scene streaming past on both sides: near its edge, few pixels are explained better
+  by the last frame as it was (a subject the camera follows is opaque);
+* whose cells' vectors read off the camera's motion (a mixture of it and none);
+* taken by ``SEEN_FINDS`` looks (a moving object's path is taken for a few frames at most),
+  and, as a whole piece, streamed through (the median of the two explanations' ratio).
+
+The tests look at one frame in ``EVERY`` where the camera moved: a watermark stays for the whole
+video, and footage without one pays a quarter of their cost.
+
+*Seeing through it.* The scene passes under the overlay as it passes around it, so over the
+frames a pixel under it has the temporal mean and spread of the pixels around it, mapped by its
+gain and offset: the gain is the ratio of the spreads, the offset what is left of the mean.
+:meth:`SeeThrough.unveil` maps the frame's overlay pixels back to the scene, so that the motion,
+the background model and the foreground decision see the scene, and the objects that pass under
+the word, not the word.
+"""
+
+from __future__ import annotations
+
+from typing import Optional, Tuple
+
+import cv2
+import numpy as np
+
+from bgsub.background.evidence import cell_index, cells_to_pixels
+from bgsub.motion.global_motion import apply_homography
+
+__all__ = ["SeeThrough"]
+
+#: Along a letter's edge, |frame - last frame moved by the camera| is at least this many times
+#: |frame - last frame| (averaged over 5 x 5 of the sharp pixels).
+FIXED = 1.5
+#: Within AROUND px of such an edge, under OPAQUE of the pixels off the edges are explained
+#: better by the last frame as it was: the scene streams past on both sides.
+AROUND = 7
+OPAQUE = 0.2
+#: Pixels within EDGE_PX (a square's side) of the running mean's edges are the edges' own.
+EDGE_PX = 5
+#: The cells' vectors read, on average, at least this many px off the camera's motion, each
+#: capped at CAP_PX (an object's vectors must not outweigh the cell's others).
+OFF_CAMERA = 0.3
+CAP_PX = 2.0
+#: The tests look at one frame in EVERY where the camera moved; their running means forget at
+#: LOOK_RATE a frame (at most).
+EVERY = 4
+LOOK_RATE = 1.0 / 32
+#: A pixel joins the overlay once this many looks took it ...
+SEEN_FINDS = 2
+#: ... and stays in it while the median |frame - moved last| / |frame - last| over its piece is
+#: under this.
+PIECE_STREAMS = 1.2
+#: The frames' temporal mean and spread forget at this rate (at most).
+STATS_RATE = 1.0 / 32
+#: The pixels around the overlay that stand for the scene under it lie within this many px.
+AROUND_SCENE = 15
+#: A pixel is mapped back where its gain lies in this range: under it the overlay is opaque
+#: there (or an object held still), above it there is no overlay to take out.
+GAIN_RANGE = (0.4, 0.95)
+#: Below this spread (variance, gray levels squared) around a pixel, no gain can be read.
+MIN_VARIANCE = 1.0
+
+
+class SeeThrough:
+    """Finds semi-transparent overlays in the frames where the camera moved (:meth:`observe`,
+    :meth:`find`) and maps them back to the scene they show (:meth:`unveil`). ``cell``: the size
+    (px) of the cells the vectors' residuals are averaged over.
+
+    :attr:`region` is the ``(h, w) bool`` overlay found (None while there is none)."""
+
+    def __init__(self, cell: int) -> None:
+        self.cell = int(cell)
+        self.region: Optional[np.ndarray] = None
+        self._moved: Optional[np.ndarray] = None  # (h, w) float32: |frame - moved last|
+        self._still: Optional[np.ndarray] = None  # (h, w) float32: |frame - last|
+        self._off: Optional[np.ndarray] = None  # (gh, gw) float32: cells' px off the camera
+        self._mean: Optional[np.ndarray] = None  # (h, w) float32: the frames' mean ...
+        self._square: Optional[np.ndarray] = None  # ... and mean square
+        self._frames = 0  # ... over this many frames
+        self._looks = 0  # frames where the camera moved, seen by observe
+        self._looked = False  # whether the last observe looked
+        self._hits: Optional[np.ndarray] = None  # (h, w) float32: finds that took a pixel
+        self._map: Optional[_SceneMap] = None
+
+    def observe(self, cur: np.ndarray, last: np.ndarray, matrix: np.ndarray,
+                points: np.ndarray, disp: np.ndarray, weights: np.ndarray) -> None:
+        """Fold in a frame where the camera moved (one in EVERY): ``cur`` and the ``last`` frame
+        ((h, w) uint8, blurred), the camera's motion between them ``matrix`` (3, 3) and the
+        front end's vectors (``points`` and ``disp`` (N, 2), ``weights`` (N,))."""
+        self._looks += 1
+        self._looked = (self._looks - 1) % EVERY == 0
+        if not self._looked:
+            return
+        rate = max(EVERY / self._looks, EVERY * LOOK_RATE)  # (a look stands for EVERY frames)
+        h, w = cur.shape
+        moved = cv2.warpPerspective(last, matrix, (w, h), flags=cv2.INTER_LINEAR,
+                                    borderMode=cv2.BORDER_REPLICATE)
+        now = (cv2.absdiff(cur, moved).astype(np.float32),
+               cv2.absdiff(cur, last).astype(np.float32))
+        if self._moved is None or self._moved.shape != cur.shape:
+            self._moved, self._still = now
+            self._off = None
+        else:
+            cv2.accumulateWeighted(now[0], self._moved, rate)
+            cv2.accumulateWeighted(now[1], self._still, rate)
+        self._observe_cells(matrix, points, disp, weights, cur.shape, rate)
+
+    def take_in(self, gray: np.ndarray) -> None:
+        """Fold a frame seen while the camera moved, ``gray`` ((h, w) uint8, as it came), into
+        the temporal mean and spread that map the overlay back to the scene."""
+        frame = gray.astype(np.float32)
+        if self._mean is None or self._mean.shape != frame.shape:
+            self._mean, self._square, self._frames = frame, frame * frame, 0
+        self._frames += 1
+        rate = max(1.0 / self._frames, STATS_RATE)
+        cv2.accumulateWeighted(frame, self._mean, rate)
+        cv2.accumulateWeighted(frame * frame, self._square, rate)
+
+    def _observe_cells(self, matrix: np.ndarray, points: np.ndarray, disp: np.ndarray,
+                       weights: np.ndarray, shape: tuple, rate: float) -> None:
+        """Fold each cell's mean residual from the camera's motion into its running mean."""
+        pts = np.asarray(points, np.float64)
+        camera = apply_homography(np.asarray(matrix, np.float64), pts) - pts
+        off = np.minimum(np.hypot(*(np.asarray(disp, np.float64) - camera).T), CAP_PX)
+        cells, (gh, gw) = cell_index(pts, shape, self.cell)
+        use = np.asarray(weights) > 0
+        total = np.bincount(cells[use], off[use], minlength=gh * gw)
+        count = np.bincount(cells[use], minlength=gh * gw)
+        now = (total / np.maximum(count, 1)).reshape(gh, gw).astype(np.float32)
+        if self._off is None:
+            self._off = now
+            return
+        seen = (count > 0).reshape(gh, gw)
+        self._off = np.where(seen, self._off + rate * (now - self._off), self._off)
+
+    def find(self, sharp: np.ndarray, edges: np.ndarray, *, least: int) -> None:
+        """On the frames :meth:`observe` looked at: update :attr:`region` and the map back to
+        the scene from the pieces of ``sharp`` ((h, w) bool: sharp in the frames' running mean;
+        ``edges``: the mean's textured pixels) that pass as see-through letters, in pieces of
+        ``least`` pixels or more."""
+        if not self._looked or self._moved is None or self._moved.shape != sharp.shape:
+            return
+        letters = _letters(self._candidates(sharp, edges), least)
+        if letters is not None:
+            if self._hits is None:
+                self._hits = np.zeros(sharp.shape, np.float32)
+            self._hits[letters] += 1
+            letters &= self._hits >= SEEN_FINDS
+        if self.region is not None:
+            letters = self.region if letters is None else letters | self.region
+        self.region = None if letters is None or not letters.any() else self._streamed(letters)
+        self._map = None if self.region is None else _scene_map(self._mean, self._square,
+                                                                 self.region)
+
+    def _candidates(self, sharp: np.ndarray, edges: np.ndarray) -> np.ndarray:
+        """``(h, w) bool``: the ``sharp`` pixels that pass the tests of a see-through letter's
+        edge (see the module's docstring)."""
+        near_edge = cv2.dilate(edges.view(np.uint8), np.ones((EDGE_PX, EDGE_PX), np.uint8)) > 0
+        s = sharp.astype(np.float32)
+        fixed = cv2.blur(self._moved * s, (5, 5)) >= FIXED * cv2.blur(self._still * s, (5, 5))
+        off_edges = (~near_edge).astype(np.float32)
+        opaque = ((self._moved > self._still) & ~near_edge).astype(np.float32)
+        window = (2 * AROUND + 1, 2 * AROUND + 1)
+        around = cv2.blur(off_edges, window)
+        share = cv2.blur(opaque, window) / np.maximum(around, np.float32(1e-3))
+        found = sharp & fixed & (share < OPAQUE) & (around > 0.05)
+        return found & (cells_to_pixels(self._off, sharp.shape, self.cell) >= OFF_CAMERA)
+
+    def _streamed(self, pieces: np.ndarray) -> Optional[np.ndarray]:
+        """The ``pieces`` ((h, w) bool) through which the scene streams, judged whole (a
+        subject the camera follows, opaque, is not); None for none."""
+        n, labels, stats, _ = cv2.connectedComponentsWithStats(pieces.view(np.uint8),
+                                                               connectivity=8)
+        ratio = self._moved / np.maximum(self._still, np.float32(1e-3))
+        keep = np.zeros(n, bool)
+        for i in range(1, n):
+            x, y, w, h = stats[i, :4]
+            box = np.s_[y:y + h, x:x + w]
+            keep[i] = float(np.median(ratio[box][labels[box] == i])) < PIECE_STREAMS
+        return keep[labels] if keep.any() else None
+
+    def unveil(self, work: np.ndarray, gray: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        """``(work, gray)`` (a working-size frame (h, w[, 3]) and its gray image, uint8) with
+        the overlay's pixels mapped back to the scene (copies); as they are without one."""
+        if self._map is None or self._map.shape != gray.shape[:2]:
+            return work, gray
+        return self._map(work), self._map(gray)
+
+
+class _SceneMap:
+    """Per pixel of a box of the frame, ``(image - offset) / gain``: the overlay mapped back to
+    the scene (``gain`` and ``offset`` (bh, bw) float32, 1 and 0 off the overlay)."""
+
+    def __init__(self, shape: tuple, box: Tuple[slice, slice], gain: np.ndarray,
+                 offset: np.ndarray) -> None:
+        self.shape, self.box, self.gain, self.offset = shape, box, gain, offset
+
+    def __call__(self, image: np.ndarray) -> np.ndarray:
+        """``image`` ((h, w[, 3]) uint8) mapped back to the scene in the box; a copy."""
+        g, o = (self.gain, self.offset) if image.ndim == 2 else (self.gain[..., None],
+                                                                 self.offset[..., None])
+        out = image.copy()
+        out[self.box] = np.clip((image[self.box].astype(np.float32) - o) / g, 0, 255
+                                ).astype(np.uint8)
+        return out
+
+
+def _scene_map(mean: np.ndarray, square: np.ndarray, region: np.ndarray) -> Optional[_SceneMap]:
+    """The map of the ``region`` ((h, w) bool) back to the scene: against the frames' temporal
+    ``mean`` and mean ``square`` of the pixels around it (within AROUND_SCENE px, off the
+    region), the ratio of the spreads is the gain and what is left of the mean the offset. None
+    where no pixel gets a gain in GAIN_RANGE."""
+    outside = (~region).astype(np.float32)
+    variance = np.maximum(square - mean * mean, 0.0)
+    k = (2 * AROUND_SCENE + 1, 2 * AROUND_SCENE + 1)
+    weight = cv2.blur(outside, k) + np.float32(1e-3)
+    scene_mean = cv2.blur(mean * outside, k) / weight
+    scene_variance = cv2.blur(variance * outside, k) / weight
+    gain = np.sqrt(cv2.blur(variance, (3, 3)) / np.maximum(scene_variance, MIN_VARIANCE))
+    ok = region & (gain >= GAIN_RANGE[0]) & (gain <= GAIN_RANGE[1])
+    if not ok.any():
+        return None
+    x, y, w, h = cv2.boundingRect(ok.view(np.uint8))
+    box = np.s_[y:y + h, x:x + w]
+    inside = ok[box]
+    return _SceneMap(region.shape, box, np.where(inside, gain[box], 1.0).astype(np.float32),
+                     np.where(inside, (mean - gain * scene_mean)[box], 0.0).astype(np.float32))
+
+
+def _letters(found: np.ndarray, least: int) -> Optional[np.ndarray]:
+    """The ``found`` pixels ((h, w) bool) in pieces of ``least`` or more, closed, with what they
+    enclose filled and grown by 3 px (a letter's rim); None for none."""
+    closed = cv2.morphologyEx(found.view(np.uint8), cv2.MORPH_CLOSE, np.ones((7, 7), np.uint8))
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(closed, connectivity=8)
+    large = stats[:, cv2.CC_STAT_AREA] >= least
+    large[0] = False
+    if not large.any():
+        return None
+    m = large[labels].view(np.uint8)
+    flooded = cv2.copyMakeBorder(m, 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=0)
+    cv2.floodFill(flooded, None, (0, 0), 1)
+    m = m | (flooded[1:-1, 1:-1] == 0).view(np.uint8)
+    return cv2.dilate(m, np.ones((7, 7), np.uint8)) > 0

@@ -1,0 +1,104 @@
+"""A semi-transparent watermark word burnt into a moving camera's frames is seen through: found,
+taken out of the frames, and the objects under it still watched (bgsub.background.see_through
+through the moving-camera engine)."""
+
+import cv2
+import numpy as np
+import pytest
+
+from bgsub import create_engine
+from bgsub.background.see_through import SeeThrough
+from bgsub.samples import SceneSpec, render_frames
+
+from helpers import write_pan_clip
+
+WORD_AT = (40, 140)  # the word's baseline start, x y
+OPACITY = 0.35
+
+
+def word(shape) -> np.ndarray:
+    """(h, w) uint8: the word's coverage, 255 inside, anti-aliased."""
+    out = np.zeros(shape[:2], np.uint8)
+    cv2.putText(out, "SAMPLE", WORD_AT, cv2.FONT_HERSHEY_DUPLEX, 2.0, 255, 5, cv2.LINE_AA)
+    return out
+
+
+def with_word(image: np.ndarray) -> np.ndarray:
+    """``image`` with a white word blended in at OPACITY, fixed in the frame."""
+    a = (word(image.shape).astype(np.float32) / 255 * OPACITY)[..., None]
+    return (image * (1 - a) + 255 * a).astype(np.uint8)
+
+
+def run(*, category: str = "pan", n_frames: int = 90, **params):
+    """``(engine, false positives near the word, F)`` over frames 30 on of a sample scene with
+    the word burnt in."""
+    engine = create_engine("grbm", **params)
+    near_word = cv2.dilate(word((240, 320)), np.ones((9, 9), np.uint8)) > 0
+    fp_near = tp = fp = fn = 0
+    for k, (image, gt, _) in enumerate(render_frames(SceneSpec(category, seed=1,
+                                                               n_frames=n_frames))):
+        mask = engine.apply(with_word(image)) > 0
+        if k < 30:
+            continue
+        background = gt == 0
+        fp_near += np.count_nonzero(mask & background & near_word)
+        tp += np.count_nonzero(mask & (gt == 255))
+        fp += np.count_nonzero(mask & background)
+        fn += np.count_nonzero(~mask & (gt == 255))
+    return engine, fp_near, 2 * tp / max(2 * tp + fp + fn, 1)
+
+
+@pytest.fixture(scope="module")
+def seen_through():
+    return run()
+
+
+@pytest.fixture(scope="module")
+def left_in():
+    return run(see_through=0)
+
+
+def test_a_watermark_over_a_pan_is_found_where_it_is(seen_through):
+    engine, _, _ = seen_through
+    x, y, w, h = engine.see_through_box
+    ys, xs = np.nonzero(word((240, 320)))
+    # The box holds the word, give or take the grown rim, and little more.
+    assert x <= xs.min() <= x + 8 and x + w - 8 <= xs.max() <= x + w
+    assert y <= ys.min() <= y + 8 and y + h - 8 <= ys.max() <= y + h
+
+
+def test_seen_through_the_word_is_less_often_foreground(seen_through, left_in):
+    _, fp_through, f_through = seen_through
+    _, fp_left, f_left = left_in
+    assert fp_through < 0.8 * fp_left
+    assert f_through > f_left + 0.05  # the objects, under the word too, are still found
+
+
+def test_left_in_no_watermark_is_reported(left_in):
+    engine, _, _ = left_in
+    assert engine.see_through_box is None
+
+
+def test_a_still_camera_sees_through_nothing():
+    # A still camera's scene does not stream past the word: nothing tells it from the scene.
+    engine, _, _ = run(category="static", n_frames=60)
+    assert engine.see_through_box is None
+
+
+def test_without_an_overlay_the_frames_are_left_as_they_are():
+    see = SeeThrough(8)
+    frame = np.random.default_rng(0).integers(0, 255, (48, 64, 3), np.uint8)
+    gray = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+    work, g = see.unveil(frame, gray)
+    assert work is frame and g is gray
+    assert see.region is None
+
+
+def test_bgsub_run_reports_the_watermark_once(tmp_path, capsys):
+    from bgsub.cli import main
+
+    clip = write_pan_clip(tmp_path / "watermark.avi", seed=1, n=60, fourcc="FFV1",
+                          burn_in=with_word)
+    assert main(["run", str(clip), "-o", str(tmp_path / "masks.mkv")]) == 0
+    err = capsys.readouterr().err
+    assert err.count("semi-transparent overlay") == 1

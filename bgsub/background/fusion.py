@@ -30,7 +30,7 @@ from bgsub.background.clamp import at_least
 from bgsub.background.edge_holes import fill_edge_holes
 from bgsub.background.evidence import (cell_index, cells_to_pixels, frame_evidence,
                                        residual_field)
-from bgsub.background.morphology import kernel
+from bgsub.background.morphology import enclosed, kernel
 from bgsub.errors import InputError
 from bgsub._util import fast_median
 from bgsub.motion.global_motion import apply_homography
@@ -392,12 +392,9 @@ def persistent_blobs(mask: np.ndarray, previous: np.ndarray, matrix: np.ndarray,
 def _fill_holes(m: np.ndarray, max_area: int) -> None:
     """Set to 1, in place, the 0-regions of the 0/1 ``m`` ((H, W) uint8) that do not reach the
     border (4-connected), each of at most ``max_area`` pixels."""
-    # Flood the background from a one-pixel frame around the image: what stays 0 is enclosed.
-    # (Cheaper than labelling the background, which only the rare case of more enclosed pixels
-    # than max_area in total needs.)
-    flooded = cv2.copyMakeBorder(m, 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=0)
-    cv2.floodFill(flooded, None, (0, 0), 1)
-    holes = 1 - flooded[1:-1, 1:-1]
+    # (A flood from the border is cheaper than labelling the background, which only the rare
+    # case of more enclosed pixels than max_area in total needs.)
+    holes = enclosed(m)
     total = cv2.countNonZero(holes)
     if total == 0:
         return

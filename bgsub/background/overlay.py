@@ -34,7 +34,7 @@ import numpy as np
 
 from bgsub.background.bars import BlackBars
 from bgsub.background.evidence import cell_index, cells_to_pixels
-from bgsub.background.morphology import kernel
+from bgsub.background.morphology import enclosed, kernel
 from bgsub.background.see_through import SeeThrough
 from bgsub.settings import check_settings, setting
 
@@ -196,9 +196,10 @@ class OverlayDetector:
         cv2.accumulateWeighted(gradient, self._edges, rate)
         found = (self._seen >= c.overlay_frames) & (self._fixed >= c.overlay * self._seen)
         if self._travelled >= TRAVELLED_PX:
-            sharp = self._sharp_in_mean()
+            mean_gradient = _gradient(self._mean)
+            sharp = self._sharp_in_mean(mean_gradient)
             found |= sharp
-            self._see_through.find(sharp, _gradient(self._mean) > TEXTURED / 2, least=MIN_PIECE)
+            self._see_through.find(sharp, mean_gradient, least=MIN_PIECE)
         found &= self._motionless(cur.shape)
         grown = _grown(found) if found.any() else None
         self._found = grown if grown is not None and grown.any() else None
@@ -229,10 +230,10 @@ class OverlayDetector:
         still = cv2.erode(self._still, np.ones((5, 5), np.uint8))  # (the cells' minimum)
         return cells_to_pixels((still < STILL_PX).astype(np.float32), shape[:2], CELL) > 0
 
-    def _sharp_in_mean(self) -> np.ndarray:
-        """``(h, w) bool``: the edges that the moving camera's frames, averaged, keep sharp:
-        a semi-transparent overlay's (the scene under it blurs in the mean)."""
-        sharp = _gradient(self._mean)
+    def _sharp_in_mean(self, sharp: np.ndarray) -> np.ndarray:
+        """``(h, w) bool``: the edges that the moving camera's frames, averaged, keep sharp
+        (``sharp``: the gradient of their running mean, (h, w) float32): a semi-transparent
+        overlay's (the scene under it blurs in the mean)."""
         return (sharp >= SHARP_RATIO * self._edges) & (sharp > TEXTURED)
 
     def unveil(self, work: np.ndarray, gray: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
@@ -306,9 +307,7 @@ def _grown(found: np.ndarray) -> np.ndarray:
     large[0] = False
     m = large[labels].view(np.uint8)
     m = cv2.morphologyEx(m, cv2.MORPH_CLOSE, kernel(cv2.MORPH_RECT, 7))
-    flooded = cv2.copyMakeBorder(m, 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=0)
-    cv2.floodFill(flooded, None, (0, 0), 1)
-    holes = (1 - flooded[1:-1, 1:-1]).astype(np.uint8)
+    holes = enclosed(m)
     if cv2.countNonZero(holes) <= FILL_SHARE * m.size:
         m |= holes
     m = cv2.dilate(m, kernel(cv2.MORPH_ELLIPSE, 2 * GROW_PX + 1))

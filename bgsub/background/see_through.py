@@ -38,6 +38,7 @@ import cv2
 import numpy as np
 
 from bgsub.background.evidence import cell_index, cells_to_pixels
+from bgsub.background.morphology import enclosed, kernel
 from bgsub.motion.global_motion import apply_homography
 
 __all__ = ["SeeThrough"]
@@ -49,7 +50,9 @@ FIXED = 1.5
 #: better by the last frame as it was: the scene streams past on both sides.
 AROUND = 7
 OPAQUE = 0.2
-#: Pixels within EDGE_PX (a square's side) of the running mean's edges are the edges' own.
+#: The running mean's edges: its gradient (Sobel, L1) over this; pixels within EDGE_PX (a
+#: square's side) of them are the edges' own.
+EDGE_GRADIENT = 20.0
 EDGE_PX = 5
 #: The cells' vectors read, on average, at least this many px off the camera's motion, each
 #: capped at CAP_PX (an object's vectors must not outweigh the cell's others).
@@ -147,14 +150,14 @@ class SeeThrough:
         seen = (count > 0).reshape(gh, gw)
         self._off = np.where(seen, self._off + rate * (now - self._off), self._off)
 
-    def find(self, sharp: np.ndarray, edges: np.ndarray, *, least: int) -> None:
+    def find(self, sharp: np.ndarray, gradient: np.ndarray, *, least: int) -> None:
         """On the frames :meth:`observe` looked at: update :attr:`region` and the map back to
-        the scene from the pieces of ``sharp`` ((h, w) bool: sharp in the frames' running mean;
-        ``edges``: the mean's textured pixels) that pass as see-through letters, in pieces of
-        ``least`` pixels or more."""
+        the scene from the pieces of ``sharp`` ((h, w) bool: sharp in the frames' running mean,
+        whose gradient is ``gradient``, (h, w) float32) that pass as see-through letters, in
+        pieces of ``least`` pixels or more."""
         if not self._looked or self._moved is None or self._moved.shape != sharp.shape:
             return
-        letters = _letters(self._candidates(sharp, edges), least)
+        letters = _letters(self._candidates(sharp, gradient > EDGE_GRADIENT), least)
         if letters is not None:
             if self._hits is None:
                 self._hits = np.zeros(sharp.shape, np.float32)
@@ -168,8 +171,8 @@ class SeeThrough:
 
     def _candidates(self, sharp: np.ndarray, edges: np.ndarray) -> np.ndarray:
         """``(h, w) bool``: the ``sharp`` pixels that pass the tests of a see-through letter's
-        edge (see the module's docstring)."""
-        near_edge = cv2.dilate(edges.view(np.uint8), np.ones((EDGE_PX, EDGE_PX), np.uint8)) > 0
+        edge (see the module's docstring); ``edges``: the running mean's edges, (h, w) bool."""
+        near_edge = cv2.dilate(edges.view(np.uint8), kernel(cv2.MORPH_RECT, EDGE_PX)) > 0
         s = sharp.astype(np.float32)
         fixed = cv2.blur(self._moved * s, (5, 5)) >= FIXED * cv2.blur(self._still * s, (5, 5))
         off_edges = (~near_edge).astype(np.float32)
@@ -244,14 +247,11 @@ def _scene_map(mean: np.ndarray, square: np.ndarray, region: np.ndarray) -> Opti
 def _letters(found: np.ndarray, least: int) -> Optional[np.ndarray]:
     """The ``found`` pixels ((h, w) bool) in pieces of ``least`` or more, closed, with what they
     enclose filled and grown by 3 px (a letter's rim); None for none."""
-    closed = cv2.morphologyEx(found.view(np.uint8), cv2.MORPH_CLOSE, np.ones((7, 7), np.uint8))
+    closed = cv2.morphologyEx(found.view(np.uint8), cv2.MORPH_CLOSE, kernel(cv2.MORPH_RECT, 7))
     n, labels, stats, _ = cv2.connectedComponentsWithStats(closed, connectivity=8)
     large = stats[:, cv2.CC_STAT_AREA] >= least
     large[0] = False
     if not large.any():
         return None
     m = large[labels].view(np.uint8)
-    flooded = cv2.copyMakeBorder(m, 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=0)
-    cv2.floodFill(flooded, None, (0, 0), 1)
-    m = m | (flooded[1:-1, 1:-1] == 0).view(np.uint8)
-    return cv2.dilate(m, np.ones((7, 7), np.uint8)) > 0
+    return cv2.dilate(m | enclosed(m), kernel(cv2.MORPH_RECT, 7)) > 0

@@ -24,7 +24,9 @@ video, and footage without one pays a quarter of their cost.
 
 *Seeing through it.* The scene passes under the overlay as it passes around it, so over the
 frames a pixel under it has the temporal mean and spread of the pixels around it, mapped by its
-gain and offset: the gain is the ratio of the spreads, the offset what is left of the mean.
+gain and offset. An overlay is one colour laid over the scene at each pixel's own opacity (the
+gain is one less the opacity, the offset the opacity times the colour): the ratio of the spreads
+reads the colour where the scene varies enough, and the means read each pixel's opacity.
 :meth:`SeeThrough.unveil` maps the frame's overlay pixels back to the scene, so that the motion,
 the background model and the foreground decision see the scene, and the objects that pass under
 the word, not the word.
@@ -71,11 +73,16 @@ PIECE_STREAMS = 1.2
 STATS_RATE = 1.0 / 32
 #: The pixels around the overlay that stand for the scene under it lie within this many px.
 AROUND_SCENE = 15
-#: A pixel is mapped back where its gain lies in this range: under it the overlay is opaque
-#: there (or an object held still), above it there is no overlay to take out.
+#: A pixel is mapped back where its gain (1 - its opacity) lies in this range: under it the
+#: overlay is opaque there (or an object held still), above it there is no overlay to take out.
 GAIN_RANGE = (0.4, 0.95)
 #: Below this spread (variance, gray levels squared) around a pixel, no gain can be read.
 MIN_VARIANCE = 1.0
+#: Where the scene around a pixel is within this many gray levels of the overlay's colour, no
+#: opacity can be read from the means.
+MIN_CONTRAST = 8.0
+#: Whether the scene shows through a pixel is judged from the spread within POOL px of it.
+POOL = 2
 
 
 class SeeThrough:
@@ -223,25 +230,62 @@ class _SceneMap:
 
 
 def _scene_map(mean: np.ndarray, square: np.ndarray, region: np.ndarray) -> Optional[_SceneMap]:
-    """The map of the ``region`` ((h, w) bool) back to the scene: against the frames' temporal
-    ``mean`` and mean ``square`` of the pixels around it (within AROUND_SCENE px, off the
-    region), the ratio of the spreads is the gain and what is left of the mean the offset. None
-    where no pixel gets a gain in GAIN_RANGE."""
-    outside = (~region).astype(np.float32)
+    """The map of the ``region`` ((h, w) bool) back to the scene, from the frames' temporal
+    ``mean`` and mean ``square`` ((h, w) float32) there and at the pixels around it; None where
+    no pixel's opacity can be read.
+
+    An overlay pixel shows ``(1 - a) scene + a colour``: the overlay's one colour at the pixel's
+    own opacity ``a`` (a letter's inside, its anti-aliased rim, nothing between the letters).
+    Where the scene varies enough, the ratio of the spreads reads the gain ``1 - a``, and those
+    pixels give the colour (their median). Each pixel's opacity then follows from the means
+    alone, which a sparse scene (a star field, a plain sky) reads far better than its spread."""
     variance = np.maximum(square - mean * mean, 0.0)
-    k = (2 * AROUND_SCENE + 1, 2 * AROUND_SCENE + 1)
-    weight = cv2.blur(outside, k) + np.float32(1e-3)
-    scene_mean = cv2.blur(mean * outside, k) / weight
-    scene_variance = cv2.blur(variance * outside, k) / weight
-    gain = np.sqrt(cv2.blur(variance, (3, 3)) / np.maximum(scene_variance, MIN_VARIANCE))
-    ok = region & (gain >= GAIN_RANGE[0]) & (gain <= GAIN_RANGE[1])
+    scene_mean, scene_variance = _around(mean, variance, region)
+    colour = _colour(mean, variance, scene_mean, scene_variance, region)
+    if colour is None:
+        return None
+    gap = colour - scene_mean
+    gap[np.abs(gap) < MIN_CONTRAST] = np.inf  # (opacity 0: the colour is the scene's own)
+    opacity = np.clip((mean - scene_mean) / gap, 0.0, 1.0 - GAIN_RANGE[0])
+    # Opaque where the scene does not show through: its spread, pooled over a few stars'
+    # spacing, stays under GAIN_RANGE[0] of the scene's around.
+    k = (2 * POOL + 1, 2 * POOL + 1)
+    shows = cv2.blur(variance, k) >= GAIN_RANGE[0] ** 2 * scene_variance
+    ok = region & shows & (opacity >= 1.0 - GAIN_RANGE[1])
     if not ok.any():
         return None
     x, y, w, h = cv2.boundingRect(ok.view(np.uint8))
     box = np.s_[y:y + h, x:x + w]
     inside = ok[box]
-    return _SceneMap(region.shape, box, np.where(inside, gain[box], 1.0).astype(np.float32),
-                     np.where(inside, (mean - gain * scene_mean)[box], 0.0).astype(np.float32))
+    return _SceneMap(region.shape, box,
+                     np.where(inside, 1.0 - opacity[box], 1.0).astype(np.float32),
+                     np.where(inside, opacity[box] * colour, 0.0).astype(np.float32))
+
+
+def _around(mean: np.ndarray, variance: np.ndarray,
+            region: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """``(scene_mean, scene_variance)``, (h, w) float32: the temporal ``mean`` and ``variance``
+    of the pixels off the ``region`` within AROUND_SCENE px (the variance at least
+    MIN_VARIANCE): what the scene under the region shows over the frames."""
+    outside = (~region).astype(np.float32)
+    k = (2 * AROUND_SCENE + 1, 2 * AROUND_SCENE + 1)
+    weight = cv2.blur(outside, k) + np.float32(1e-3)
+    scene_mean = cv2.blur(mean * outside, k) / weight
+    scene_variance = np.maximum(cv2.blur(variance * outside, k) / weight, MIN_VARIANCE)
+    return scene_mean, scene_variance
+
+
+def _colour(mean: np.ndarray, variance: np.ndarray, scene_mean: np.ndarray,
+            scene_variance: np.ndarray, region: np.ndarray) -> Optional[float]:
+    """The overlay's colour (a gray level): the median, over the ``region``'s pixels whose
+    spread against the scene's reads a gain in GAIN_RANGE, of ``(mean - gain scene_mean) / (1 -
+    gain)``; None where no pixel's does."""
+    gain = np.sqrt(cv2.blur(variance, (3, 3)) / scene_variance)
+    readable = region & (gain >= GAIN_RANGE[0]) & (gain <= GAIN_RANGE[1])
+    if not readable.any():
+        return None
+    g = gain[readable]
+    return float(np.median((mean[readable] - g * scene_mean[readable]) / (1.0 - g)))
 
 
 def _letters(found: np.ndarray, least: int) -> Optional[np.ndarray]:

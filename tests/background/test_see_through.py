@@ -74,6 +74,38 @@ def test_seen_through_the_word_is_less_often_foreground(seen_through, left_in):
     assert f_through > f_left + 0.05  # the objects, under the word too, are still found
 
 
+def star_field(shape, seed=0) -> np.ndarray:
+    """(h, w) uint8: a dark sky with a star every 150 pixels or so, slightly blurred."""
+    rng = np.random.default_rng(seed)
+    sky = np.full(shape, 12.0) + rng.normal(0, 2, shape)
+    stars = rng.integers(0, shape[0] * shape[1], shape[0] * shape[1] // 150)
+    sky.flat[stars] += rng.uniform(60, 240, len(stars))
+    return np.clip(cv2.GaussianBlur(sky, (0, 0), 0.8) * 1.6, 0, 255).astype(np.uint8)
+
+
+def test_a_word_over_a_star_field_is_mapped_back_to_the_scene():
+    # A sparse, dark scene varies too little around most of the word's pixels for the ratio of
+    # spreads to read their opacity; the means read it.
+    n = 100
+    sky = star_field((240 + 2 * n, 320 + 3 * n))
+    coverage = word((240, 320))
+    opacity = coverage.astype(np.float32) / 255 * OPACITY
+    engine = create_engine("grbm")
+    errors, contrast = [], []
+    for t in range(n):
+        scene = sky[2 * t:2 * t + 240, 3 * t:3 * t + 320].astype(np.float32)
+        gray = (scene * (1 - opacity) + 255 * opacity).astype(np.uint8)
+        engine.apply(cv2.cvtColor(gray, cv2.COLOR_GRAY2BGR))
+        if t >= 60 and t % 10 == 0:
+            _, mapped = engine.overlays.unveil(cv2.cvtColor(gray, cv2.COLOR_GRAY2BGR), gray)
+            inside = coverage > 128
+            errors.append(np.abs(mapped - scene)[inside].mean())
+            contrast.append(np.abs(gray - scene)[inside].mean())
+    assert engine.see_through_box is not None
+    assert np.mean(contrast) > 50  # (the word as it came)
+    assert np.mean(errors) < 8  # gray levels, over the word's pixels
+
+
 def test_left_in_no_watermark_is_reported(left_in):
     engine, _, _ = left_in
     assert engine.see_through_box is None

@@ -247,8 +247,9 @@ def _scene_map(mean: np.ndarray, square: np.ndarray, region: np.ndarray) -> Opti
     gap = colour - scene_mean
     gap[np.abs(gap) < MIN_CONTRAST] = np.inf  # (opacity 0: the colour is the scene's own)
     opacity = np.clip((mean - scene_mean) / gap, 0.0, 1.0 - GAIN_RANGE[0])
-    # Opaque where the scene does not show through: its spread, pooled over a few stars'
-    # spacing, stays under GAIN_RANGE[0] of the scene's around.
+    # Opaque where the scene does not show through: its spread, pooled over (2 POOL + 1)^2
+    # pixels (one pixel of a sparse scene may see nothing pass), stays under GAIN_RANGE[0] of
+    # the scene's around.
     k = (2 * POOL + 1, 2 * POOL + 1)
     shows = cv2.blur(variance, k) >= GAIN_RANGE[0] ** 2 * scene_variance
     ok = region & shows & (opacity >= 1.0 - GAIN_RANGE[1])

@@ -90,6 +90,7 @@ def test_a_word_over_a_star_field_is_mapped_back_to_the_scene():
     sky = star_field((240 + 2 * n, 320 + 3 * n))
     coverage = word((240, 320))
     opacity = coverage.astype(np.float32) / 255 * OPACITY
+    inside = coverage > 128
     engine = create_engine("grbm")
     errors, contrast = [], []
     for t in range(n):
@@ -98,7 +99,6 @@ def test_a_word_over_a_star_field_is_mapped_back_to_the_scene():
         engine.apply(cv2.cvtColor(gray, cv2.COLOR_GRAY2BGR))
         if t >= 60 and t % 10 == 0:
             _, mapped = engine.overlays.unveil(cv2.cvtColor(gray, cv2.COLOR_GRAY2BGR), gray)
-            inside = coverage > 128
             errors.append(np.abs(mapped - scene)[inside].mean())
             contrast.append(np.abs(gray - scene)[inside].mean())
     assert engine.see_through_box is not None

@@ -20,7 +20,8 @@ input size):
 5. learn (:meth:`~bgsub.background.foreground.Foreground.learn`): the models' update, deferred
    to the next frame, where it runs in the second thread (``overlap=1``) beside the front end;
 6. place (:func:`place_mask`): the mask is placed on the frame's own colour edges, at the
-   input's size (:func:`~bgsub.background.guided.guided_mask`, ``edge_radius``).
+   input's size (:func:`~bgsub.background.guided.guided_mask`, ``edge_radius``), and completed
+   by its objects' colours where asked (:mod:`~bgsub.background.colour_cut`, ``colour_cut``).
 
 Frames that cannot be processed normally (blank, textureless, a scene cut) never raise: they
 return an empty mask (or, for a scene cut, restart the model) and say why in ``last_status``.
@@ -37,6 +38,7 @@ import cv2
 import numpy as np
 
 from bgsub._util import FieldWarp
+from bgsub.background.colour_cut import colour_cut
 from bgsub.background.compensated import BackgroundConfig, CompensatedBackground
 from bgsub.background.exposure import match_exposure, same_exposure
 from bgsub.background.foreground import Foreground, ForegroundConfig
@@ -124,12 +126,17 @@ def place_mask(mask: np.ndarray, work: np.ndarray, image: np.ndarray,
     """The place stage: the fused working-size ``mask`` placed on the frame's colour edges at
     the size of the input ``image`` (:func:`~bgsub.background.guided.guided_mask`, with
     ``work``, the frame at the working size), or with ``edge_radius`` 0 as it is, scaled up
-    bilinearly. ``(H, W) uint8`` 0/255."""
+    bilinearly; with ``colour_cut``, completed by the objects' colours
+    (:func:`~bgsub.background.colour_cut.colour_cut`). ``(H, W) uint8`` 0/255."""
     if config.edge_radius == 0:
-        return _to_input(mask, image.shape, binary=True)
-    full = work if work.shape == image.shape else image
-    return guided_mask(mask, work, full, radius=config.edge_radius, eps=config.edge_eps,
-                       step=config.edge_step)
+        placed = _to_input(mask, image.shape, binary=True)
+    else:
+        full = work if work.shape == image.shape else image
+        placed = guided_mask(mask, work, full, radius=config.edge_radius, eps=config.edge_eps,
+                             step=config.edge_step)
+    if config.colour_cut:
+        return colour_cut(placed, image, radius=config.colour_cut)
+    return placed
 
 
 def to_input_motion(matrix: np.ndarray, in_shape: tuple, work_width: int) -> np.ndarray:

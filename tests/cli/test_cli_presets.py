@@ -125,7 +125,7 @@ def test_methods_lists_each_preset_with_its_values(capsys):
          "still_pause=1,", "flow_boost=1.0,", "grow_above=0.8,",
          "lookback=45"],
         ["balanced", "the", "defaults"],
-        ["accurate", "edge_step=1"]]
+        ["accurate", "edge_step=1,", "colour_cut=9"]]
 
 
 def test_methods_json_holds_the_presets(capsys):
@@ -136,7 +136,8 @@ def test_methods_json_holds_the_presets(capsys):
                                          "violation_threshold": 0.375, "overlap": 0,
                                          "still_pause": 1, "flow_boost": 1.0,
                                          "grow_above": 0.8, "lookback": 45},
-                                "balanced": {}, "accurate": {"edge_step": 1}}
+                                "balanced": {}, "accurate": {"edge_step": 1,
+                                                                "colour_cut": 9}}
 
 
 def test_methods_shows_no_presets_for_an_engine_without_them(capsys):

@@ -426,6 +426,19 @@ def test_the_mask_follows_the_frame_edges(name, work_width):
     assert scores[8] > scores[0] + 0.015
 
 
+def test_the_colour_cut_only_adds_to_the_placed_mask():
+    # (colour_cut: the pixels near the mask that the objects' colours explain join it; the
+    # engine's own mask, and so what it learns, is the same.)
+    frames = list(render_frames(SceneSpec(category="pan", seed=0, n_frames=20)))
+    plain, cut = create_engine("grbm"), create_engine("grbm", colour_cut=9)
+    added = 0
+    for f in frames:
+        a, b = plain.apply(f.image), cut.apply(f.image)
+        assert not np.any(a & ~b)
+        added += np.count_nonzero(b & ~a)
+    assert added > 0
+
+
 @pytest.mark.parametrize("name", ["compensated", "grbm-oracle"])
 def test_fallbacks_do_not_crash_and_are_reported(name):
     eng = create_engine("compensated") if name == "compensated" else _grbm_with_oracle()

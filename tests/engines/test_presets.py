@@ -28,7 +28,7 @@ def test_the_gated_rbm_has_fast_and_accurate_presets_of_its_own():
                                             "violation_threshold": 0.375, "overlap": 0,
                                             "still_pause": 1, "flow_boost": 1.0,
                                             "grow_above": 0.8, "lookback": 45}
-    assert GrbmFrontEnd.presets["accurate"] == {"edge_step": 1}
+    assert GrbmFrontEnd.presets["accurate"] == {"edge_step": 1, "colour_cut": 9}
     assert GrbmFrontEnd.presets["balanced"] == MotionFrontEnd.presets["balanced"]
     assert LucasKanadeFrontEnd.presets == MotionFrontEnd.presets
 
@@ -39,13 +39,13 @@ def test_balanced_is_the_defaults(method):
     assert create_engine(method, preset="balanced").config == create_engine(method).config
 
 
-@pytest.mark.parametrize("method, preset, width, radius, step", [
-    ("grbm", "fast", 160, 4, 2), ("compensated", "fast", 160, 0, 2),
-    ("grbm", "accurate", 320, 8, 1), ("compensated", "accurate", 480, 8, 2)])
-def test_a_preset_builds_the_engine_with_its_values(method, preset, width, radius, step):
-    engine = create_engine(method, preset=preset)
-    config = engine.config
-    assert (config.work_width, config.edge_radius, config.edge_step) == (width, radius, step)
+@pytest.mark.parametrize("method, preset, width, radius, step, cut", [
+    ("grbm", "fast", 160, 4, 2, 0), ("compensated", "fast", 160, 0, 2, 0),
+    ("grbm", "accurate", 320, 8, 1, 9), ("compensated", "accurate", 480, 8, 2, 0)])
+def test_a_preset_builds_the_engine_with_its_values(method, preset, width, radius, step, cut):
+    config = create_engine(method, preset=preset).config
+    assert (config.work_width, config.edge_radius, config.edge_step,
+            config.colour_cut) == (width, radius, step, cut)
 
 
 def test_the_gated_rbm_fast_preset_reaches_its_stages():

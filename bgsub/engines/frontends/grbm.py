@@ -148,15 +148,16 @@ class GrbmFrontEnd(MotionFrontEnd):
     #: readily (``grow_above``). A model at this size takes longer to find its objects, so the
     #: twin that makes the first masks reads further ahead (``lookback``). Its ``accurate``
     #: fits the edge placement's guided filter on every pixel of the mask and frame
-    #: (``edge_step=1``): a larger working size takes the subjects the camera follows into the
-    #: parallax field and scores below ``balanced`` on real footage (docs/decisions.md).
+    #: (``edge_step=1``) and completes the mask by its objects' colours (``colour_cut``): a
+    #: larger working size takes the subjects the camera follows into the parallax field and
+    #: scores below ``balanced`` on real footage (docs/decisions.md).
     presets = MappingProxyType({
         **MotionFrontEnd.presets,
         "fast": {"work_width": 160, "stride": 16, "overlay": 0, "edge_radius": 4,
                  "ransac_threshold": 0.5, "violation_threshold": 0.375, "overlap": 0,
                  "still_pause": 1, "flow_boost": 1.0, "grow_above": 0.8,
                  "lookback": 45},
-        "accurate": {"edge_step": 1},
+        "accurate": {"edge_step": 1, "colour_cut": 9},
     })
 
     def __init__(self, config: Optional[GrbmConfig] = None, *,

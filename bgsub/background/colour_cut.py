@@ -29,9 +29,9 @@ MIN_PIXELS = 30
 
 def colour_cut(mask: np.ndarray, image: np.ndarray, *, radius: int) -> np.ndarray:
     """``mask`` ((H, W) uint8 0/255, placed on ``image``, (H, W, 3) or (H, W) uint8) with the
-    pixels added that GrabCut gives to the objects within ``radius`` px of it (at a frame
-    :data:`CUT_WIDTH` wide). A new (H, W) uint8 0/255 array; the mask as it is when it is
-    empty or too small to learn colours from."""
+    pixels added that GrabCut gives to the objects within ``radius`` px of it (px of the frame
+    shrunk to at most :data:`CUT_WIDTH` wide). A new (H, W) uint8 0/255 array; the mask as it
+    is when it is empty or too small to learn colours from."""
     h, w = mask.shape
     scale = min(1.0, CUT_WIDTH / w)
     size = (max(1, round(w * scale)), max(1, round(h * scale)))

@@ -55,9 +55,10 @@ class EngineConfig:
                                 "frame shrunk by this factor and scaled back up (the fast "
                                 "guided filter: 2 fits a quarter of the pixels)", low=1, high=8)
     colour_cut: int = setting(0, "after placement, GrabCut adds to the mask the pixels within "
-                                 "this radius (px of a frame 480 wide) that its colour model "
-                                 "gives to the objects: their flat parts, which show no motion "
-                                 "(0 = off; 1.5-2.5x a frame's time, more with larger objects)",
+                                 "this radius (px of the frame shrunk to at most 480 wide) "
+                                 "that its colour model gives to the objects: their flat "
+                                 "parts, which show no motion (0 = off; 1.5-2.5x a frame's "
+                                 "time, more with larger objects)",
                               low=0, high=64)
     lookback: int = setting(30, "before its first mask the engine reads this many frames "
                                 "ahead, when its caller has them (bgsub run and compare "

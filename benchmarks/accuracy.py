@@ -63,14 +63,17 @@ SAMPLE_SEEDS = (0, 1, 2)
 
 
 def sequences(which: str, half: str, seeds: Tuple[int, ...] = SAMPLE_SEEDS,
-              root: Optional[Path] = None) -> List[Tuple[str, str]]:
+              root: Optional[Path] = None,
+              numbers: Optional[Tuple[int, int]] = None) -> List[Tuple[str, str]]:
     """``[(family, path or 'category:seed')]`` of a set's half (``A``, ``B`` or ``all``);
     ``seeds``: the sample sets' scenes; ``root``: the generated set's folder (default
-    ``DATA/generated``)."""
+    ``DATA/generated``); ``numbers``: (first, last), only its scenes numbered so (``_NN``)."""
     groups: Dict[str, List[str]] = defaultdict(list)
     if which == "generated":
         for seq in sorted((root or DATA / "generated").glob("*/*_[0-9]*")):
-            groups[seq.parent.name].append(str(seq))
+            number = int(seq.name.rsplit("_", 1)[1])
+            if numbers is None or numbers[0] <= number <= numbers[1]:
+                groups[seq.parent.name].append(str(seq))
     elif which == "real":
         for seq in sorted((DATA / "real").iterdir()):
             if (seq / "input").is_dir():
@@ -139,6 +142,14 @@ def parse_degrade(text: str) -> Tuple[str, float]:
     if kind == "soft" and number >= 1:
         raise argparse.ArgumentTypeError("--degrade soft=F shrinks by F: below 1")
     return kind, number
+
+
+def parse_range(text: str) -> Tuple[int, int]:
+    """``FIRST-LAST`` of ``--scenes`` as ``(first, last)``, checked."""
+    first, _, last = text.partition("-")
+    if not (first.isdigit() and last.isdigit() and int(first) <= int(last)):
+        raise argparse.ArgumentTypeError(f"--scenes wants FIRST-LAST (such as 13-24), not {text!r}")
+    return int(first), int(last)
 
 
 def degrade(image: np.ndarray, kind: str, value: float, k: int) -> np.ndarray:
@@ -283,6 +294,9 @@ def main(argv: Optional[List[str]] = None) -> int:
                          "orbit=V or gain=A")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--match", default="", help="only sequences whose path contains this")
+    ap.add_argument("--scenes", type=parse_range, metavar="FIRST-LAST",
+                    help="--set generated: only the scenes numbered so (_13 to _24: 13-24), "
+                         "such as those no default was chosen on")
     ap.add_argument("--json", help="also write the figures to this file")
     ap.add_argument("--seeds", type=int, nargs="+", default=list(SAMPLE_SEEDS),
                     help="the sample sets' scene seeds (default 0 1 2, the tuned ones; "
@@ -294,7 +308,8 @@ def main(argv: Optional[List[str]] = None) -> int:
                          (args.oracle_camera and args.degrade[0] in ("step", "orbit"))):
         ap.error("--degrade needs --set generated or real (and step or orbit no --oracle-camera)")
     todo = [(args.method, params, fam, m, args.oracle_camera, args.degrade)
-            for fam, m in sequences(args.set, args.half, tuple(args.seeds), args.root)
+            for fam, m in sequences(args.set, args.half, tuple(args.seeds), args.root,
+                                    args.scenes)
             if args.match in m]
     with multiprocessing.get_context("fork").Pool(args.jobs) as pool:
         results = pool.map(run_sequence, todo, chunksize=1)

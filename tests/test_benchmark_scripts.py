@@ -3,6 +3,7 @@ would make ``benchmarks/profile_stages.py`` fail (or time nothing)."""
 
 from __future__ import annotations
 
+import argparse
 import importlib.util
 import subprocess
 import sys
@@ -37,11 +38,16 @@ def test_profile_stages_profiles_a_given_video(tmp_path):
 ACCURACY = SCRIPT.with_name("accuracy.py")
 
 
-@pytest.mark.skipif(not ACCURACY.exists(), reason="benchmarks/ is not part of an installed package")
-def test_accuracy_renders_the_sample_seeds_it_is_given():
+def _accuracy_module():
     spec = importlib.util.spec_from_file_location("accuracy_script", ACCURACY)
     accuracy = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(accuracy)
+    return accuracy
+
+
+@pytest.mark.skipif(not ACCURACY.exists(), reason="benchmarks/ is not part of an installed package")
+def test_accuracy_renders_the_sample_seeds_it_is_given():
+    accuracy = _accuracy_module()
     tuned = accuracy.sequences("samples", "all")
     fresh = accuracy.sequences("samples", "all", (3, 4, 5))
     assert {m.split(":")[1] for _, m in tuned} == {"0", "1", "2"}
@@ -49,6 +55,20 @@ def test_accuracy_renders_the_sample_seeds_it_is_given():
     assert {f for f, _ in fresh} == {f for f, _ in tuned}
     # Halves alternate within each category, as for the tuned seeds.
     assert {m.split(":")[1] for _, m in accuracy.sequences("samples", "B", (3, 4, 5))} == {"4"}
+
+
+@pytest.mark.skipif(not ACCURACY.exists(), reason="benchmarks/ is not part of an installed package")
+def test_accuracy_keeps_the_generated_scenes_of_a_number_range(tmp_path):
+    accuracy = _accuracy_module()
+    for category in ("follow", "overlay"):
+        for number in (1, 12, 13, 24):
+            (tmp_path / category / f"{category}_{number:02d}").mkdir(parents=True)
+    kept = accuracy.sequences("generated", "all", root=tmp_path, numbers=(13, 24))
+    assert sorted(Path(m).name for _, m in kept) == ["follow_13", "follow_24", "overlay_13",
+                                                     "overlay_24"]
+    assert len(accuracy.sequences("generated", "all", root=tmp_path)) == 8
+    with pytest.raises(argparse.ArgumentTypeError, match="FIRST-LAST"):
+        accuracy.parse_range("24-13")
 
 
 CHART = SCRIPT.with_name("speed_chart.py")

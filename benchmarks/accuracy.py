@@ -43,6 +43,7 @@ import argparse
 import json
 import multiprocessing
 import os
+import re
 import sys
 import time
 from collections import defaultdict
@@ -71,8 +72,8 @@ def sequences(which: str, half: str, seeds: Tuple[int, ...] = SAMPLE_SEEDS,
     groups: Dict[str, List[str]] = defaultdict(list)
     if which == "generated":
         for seq in sorted((root or DATA / "generated").glob("*/*_[0-9]*")):
-            number = int(seq.name.rsplit("_", 1)[1])
-            if numbers is None or numbers[0] <= number <= numbers[1]:
+            number = re.search(r"_(\d+)$", seq.name)
+            if numbers is None or (number and numbers[0] <= int(number[1]) <= numbers[1]):
                 groups[seq.parent.name].append(str(seq))
     elif which == "real":
         for seq in sorted((DATA / "real").iterdir()):
@@ -148,7 +149,8 @@ def parse_range(text: str) -> Tuple[int, int]:
     """``FIRST-LAST`` of ``--scenes`` as ``(first, last)``, checked."""
     first, _, last = text.partition("-")
     if not (first.isdigit() and last.isdigit() and int(first) <= int(last)):
-        raise argparse.ArgumentTypeError(f"--scenes wants FIRST-LAST (such as 13-24), not {text!r}")
+        raise argparse.ArgumentTypeError(
+            f"--scenes wants FIRST-LAST (such as 13-24), not {text!r}")
     return int(first), int(last)
 
 

@@ -7,7 +7,8 @@ a band of background beyond it, and a graph cut gives the band's pixels to which
 them, with smooth outlines. Only what it adds to the mask is kept: the motion evidence stays the
 judge of what is foreground, the colours only complete it.
 
-It takes 1.5-2.5x a ``balanced`` frame's time, more with larger objects, so only the gated RBM's
+Its time grows with the objects: about a ``balanced`` frame's own with small objects, 2.5x with
+an object across a third of the frame (docs/BENCHMARKS.md), so only the gated RBM's
 ``accurate`` uses it (``colour_cut``).
 """
 

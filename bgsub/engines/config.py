@@ -57,8 +57,8 @@ class EngineConfig:
     colour_cut: int = setting(0, "after placement, GrabCut adds to the mask the pixels within "
                                  "this radius (px of the frame shrunk to at most 480 wide) "
                                  "that its colour model gives to the objects: their flat "
-                                 "parts, which show no motion (0 = off; 1.5-2.5x a frame's "
-                                 "time, more with larger objects)",
+                                 "parts, which show no motion (0 = off; its time grows "
+                                 "with the objects: up to 2.5x a frame's)",
                               low=0, high=64)
     lookback: int = setting(30, "before its first mask the engine reads this many frames "
                                 "ahead, when its caller has them (bgsub run and compare "

@@ -244,6 +244,14 @@ class OverlayDetector:
             return work, gray
         return self._see_through.unveil(work, gray)
 
+    def discount(self, score: np.ndarray, gray: np.ndarray) -> None:
+        """Lower, in place, the ``(h, w) float32`` background ``score`` of the
+        semi-transparent overlay's pixels where the frame ``gray`` ((h, w) uint8, as it came,
+        before :meth:`unveil`) looks as the frames always did there
+        (:meth:`~bgsub.background.see_through.SeeThrough.discount`)."""
+        if self.enabled and self.config.see_through:
+            self._see_through.discount(score, gray)
+
     def forget_in(self, model: Any) -> None:
         """Drop the history of the overlay pixels in ``model`` (a
         :class:`~bgsub.background.compensated.CompensatedBackground`), if any are found."""

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Optional
+from typing import Optional, Tuple
 
 import cv2
 import numpy as np
@@ -97,6 +97,15 @@ class SampleBackground:
         if radii is None:
             return kth.astype(np.float32) * np.float32(1.0 / self.radius)
         return kth.astype(np.float32) / radii
+
+    def score_box(self, frame: np.ndarray, box: Tuple[slice, slice]) -> np.ndarray:
+        """:meth:`score` of the ``box`` (a ``(rows, columns)`` pair of slices) of ``frame``
+        alone, ``(bh, bw) float32``, at the one radius (``radius``); the model has a frame."""
+        f = self._planes(frame)
+        self._check(f)
+        rows, cols = box
+        kth = self._kth(self.s[:, :, rows, cols], f[:, rows, cols])
+        return kth.astype(np.float32) * np.float32(1.0 / self.radius)
 
     def _kth(self, samples: np.ndarray, f: np.ndarray) -> np.ndarray:
         """``(H, W) uint8``: the ``min_matches``-th smallest distance of the ``(C, H, W)``

@@ -30,6 +30,12 @@ reads the colour where the scene varies enough, and the means read each pixel's 
 :meth:`SeeThrough.unveil` maps the frame's overlay pixels back to the scene, so that the motion,
 the background model and the foreground decision see the scene, and the objects that pass under
 the word, not the word.
+
+*As it always looks.* Over a dark star field or a plain sky the scene under the word barely
+varies, so the map reads some letters wrong; but there the frames repeat the word as it came,
+frame after frame. A sample model of the frames as they came, never warped,
+(:meth:`SeeThrough.remember`) says where: :meth:`SeeThrough.discount` lowers the background
+score of the overlay's pixels that match it (an object passing under the word does not).
 """
 
 from __future__ import annotations
@@ -41,6 +47,7 @@ import numpy as np
 
 from bgsub.background.evidence import cell_index, cells_to_pixels
 from bgsub.background.morphology import enclosed, kernel
+from bgsub.background.sample import SampleBackground
 from bgsub.motion.global_motion import apply_homography
 
 __all__ = ["SeeThrough"]
@@ -83,6 +90,10 @@ MIN_VARIANCE = 1.0
 MIN_CONTRAST = 8.0
 #: Whether the scene shows through a pixel is judged from the spread within POOL px of it.
 POOL = 2
+#: An overlay pixel looks as it always does when 2 of its 20 samples of the frames as they came
+#: lie within this many gray levels (the frames' noise is well inside; chosen on the tune half
+#: of the overlay scenes: 6 / 8 / 10 / 14 / 20 a plateau, then lower).
+AS_SEEN_RADIUS = 6.0
 
 
 class SeeThrough:
@@ -105,6 +116,7 @@ class SeeThrough:
         self._looked = False  # whether the last observe looked
         self._hits: Optional[np.ndarray] = None  # (h, w) float32: finds that took a pixel
         self._map: Optional[_SceneMap] = None
+        self._as_seen = SampleBackground(radius=AS_SEEN_RADIUS)  # the frames as they came
 
     def observe(self, cur: np.ndarray, last: np.ndarray, matrix: np.ndarray,
                 points: np.ndarray, disp: np.ndarray, weights: np.ndarray) -> None:
@@ -202,6 +214,28 @@ class SeeThrough:
             box = np.s_[y:y + h, x:x + w]
             keep[i] = float(np.median(ratio[box][labels[box] == i])) < PIECE_STREAMS
         return keep[labels] if keep.any() else None
+
+    def discount(self, score: np.ndarray, gray: np.ndarray) -> None:
+        """Lower, in place, the ``(h, w) float32`` background ``score`` of the overlay's pixels
+        where the frame ``gray`` ((h, w) uint8, as it came) looks as the frames did there (the
+        samples' score, when under 1); then :meth:`remember` the frame."""
+        model = self._as_seen
+        if self.region is not None and model.s is not None and model.s.shape[2:] == gray.shape:
+            x, y, w, h = cv2.boundingRect(self.region.view(np.uint8))
+            box = np.s_[y:y + h, x:x + w]
+            seen = model.score_box(gray, box)
+            lower = self.region[box] & (seen <= 1.0) & (seen < score[box])
+            score[box][lower] = seen[lower]
+        self.remember(gray)
+
+    def remember(self, gray: np.ndarray) -> None:
+        """Fold the frame ``gray`` ((h, w) uint8, as it came) into the samples of the frames
+        as they came (each pixel renews one with probability 1/16)."""
+        model = self._as_seen
+        if model.s is None or model.s.shape[2:] != gray.shape:
+            model.reset(gray)
+        else:
+            model.update(gray)
 
     def unveil(self, work: np.ndarray, gray: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
         """``(work, gray)`` (a working-size frame (h, w[, 3]) and its gray image, uint8) with

@@ -326,6 +326,8 @@ class MovingCameraEngine(Engine):
                                            self._layers(seen, parallax, gray.shape))
         if parallax is not None:
             self.parallax.discount_edges(compared.score, compared.violation)
+        if self.roi is None:
+            self.overlays.discount(compared.score, as_came)
         young = self._region.unwatched(self.foreground.young())
         if self.foreground.is_cut(compared, seen.result, young):
             self._restart(work, gray, cur)

@@ -37,6 +37,16 @@ def test_sample_model_score_is_the_kth_smallest_sample_distance():
     assert np.allclose(model.score(frame), expected)
 
 
+def test_a_box_is_scored_as_the_whole_frame_is_there():
+    rng = np.random.default_rng(1)
+    model = SampleBackground(samples=7, min_matches=2, radius=12)
+    model.reset(rng.integers(0, 256, (20, 30, 3), dtype=np.uint8))
+    model.s[:] = rng.integers(0, 256, model.s.shape, dtype=np.uint8)
+    frame = rng.integers(0, 256, (20, 30, 3), dtype=np.uint8)
+    box = np.s_[3:11, 7:25]
+    assert np.allclose(model.score_box(frame, box), model.score(frame)[box])
+
+
 def test_sample_model_learns_background_but_not_foreground():
     frame = _gray(100)
     frame[10:20, 10:20] = 200

@@ -106,6 +106,43 @@ def test_a_word_over_a_star_field_is_mapped_back_to_the_scene():
     assert np.mean(errors) < 8  # gray levels, over the word's pixels
 
 
+def test_a_word_over_a_star_field_is_background_once_found():
+    # Over a dark sky the frames repeat the word as it came, whatever the map back to the scene
+    # makes of its letters.
+    n = 100
+    sky = star_field((240 + 2 * n, 320 + 3 * n), seed=1)
+    coverage = word((240, 320))
+    opacity = coverage.astype(np.float32) / 255 * OPACITY
+    near_word = cv2.dilate(coverage, np.ones((9, 9), np.uint8)) > 0
+    engine = create_engine("grbm")
+    false_positives = 0
+    for t in range(n):
+        scene = sky[2 * t:2 * t + 240, 3 * t:3 * t + 320].astype(np.float32)
+        gray = (scene * (1 - opacity) + 255 * opacity).astype(np.uint8)
+        mask = engine.apply(cv2.cvtColor(gray, cv2.COLOR_GRAY2BGR))
+        if t >= 60:
+            false_positives += np.count_nonzero(mask[near_word])
+    assert engine.see_through_box is not None
+    assert false_positives < 0.005 * np.count_nonzero(near_word) * (n - 60)
+
+
+def test_only_the_overlay_pixels_that_look_as_always_are_discounted():
+    rng = np.random.default_rng(0)
+    frames = [rng.normal(40, 2, (40, 60)).clip(0, 255).astype(np.uint8) for _ in range(8)]
+    see = SeeThrough(8)
+    for frame in frames:
+        see.remember(frame)
+    see.region = np.zeros((40, 60), bool)
+    see.region[10:30, 10:50] = True
+    frame = frames[-1].copy()
+    frame[10:30, 30:50] = 120  # an object under the right half of the overlay
+    score = np.full((40, 60), 3.0, np.float32)
+    see.discount(score, frame)
+    assert (score[10:30, 10:30] <= 1).all()  # the overlay as it always looks: background
+    assert (score[10:30, 30:50] == 3).all()  # the object under it: as it was
+    assert (score[:10] == 3).all() and (score[30:] == 3).all()  # off the overlay: as it was
+
+
 def test_left_in_no_watermark_is_reported(left_in):
     engine, _, _ = left_in
     assert engine.see_through_box is None

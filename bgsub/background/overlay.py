@@ -35,6 +35,7 @@ import numpy as np
 from bgsub.background.bars import BlackBars
 from bgsub.background.evidence import cell_index, cells_to_pixels
 from bgsub.background.morphology import enclosed, kernel
+from bgsub.background.held_still import HeldStill
 from bgsub.background.see_through import SeeThrough
 from bgsub.settings import check_settings, setting
 
@@ -126,6 +127,7 @@ class OverlayDetector:
         self._found: Optional[np.ndarray] = None  # (h, w) bool: the textured overlays
         self._bars = BlackBars()  # letterbox and pillarbox bars (flat: no pixel is textured)
         self._see_through = SeeThrough(CELL)  # semi-transparent ones (a watermark word)
+        self._held = HeldStill()  # repeating pixels that do not move at all (burnt in)
         self._shown: tuple = (None, None)  # the bars and found overlays self.mask is of
         self.mask = None
 
@@ -147,6 +149,8 @@ class OverlayDetector:
         blurred = cv2.blur(gray, (3, 3))
         if len(self._history) == self._history.maxlen and not camera_still:
             moved = self._learn(blurred, self._history[0], points, disp, weights)
+            if moved and self.config.see_through:
+                self._held.update(self._repeating(), blurred, self._history[-1])
             if moved and matrix is not None and self.config.see_through:
                 self._see_through.observe(blurred, self._history[-1], matrix, points, disp,
                                           weights)
@@ -205,6 +209,13 @@ class OverlayDetector:
         self._found = grown if grown is not None and grown.any() else None
         return True
 
+    def _repeating(self) -> np.ndarray:
+        """``(h, w) bool``: the textured pixels that matched the frame ``overlay_lag`` frames
+        before in ``overlay`` of at least ``overlay_frames`` frames where the camera moved (the
+        opaque overlays' test without its vectors')."""
+        c = self.config
+        return (self._seen >= c.overlay_frames) & (self._fixed >= c.overlay * self._seen)
+
     def _learn_cells(self, points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
                      shape: tuple) -> None:
         """Fold the vectors' lengths (capped at 1 px) into each CELL x CELL cell's running
@@ -246,11 +257,13 @@ class OverlayDetector:
 
     def discount(self, score: np.ndarray, gray: np.ndarray) -> None:
         """Lower, in place, the ``(h, w) float32`` background ``score`` of the
-        semi-transparent overlay's pixels where the frame ``gray`` ((h, w) uint8, as it came,
-        before :meth:`unveil`) looks as the frames always did there
+        semi-transparent overlay's pixels, and of the repeating pixels that hold still
+        (:class:`~bgsub.background.held_still.HeldStill`: a word the see-through tests miss
+        under a shaking camera), where the frame ``gray`` ((h, w) uint8, as it came, before
+        :meth:`unveil`) looks as the frames always did there
         (:meth:`~bgsub.background.see_through.SeeThrough.discount`)."""
         if self.enabled and self.config.see_through:
-            self._see_through.discount(score, gray)
+            self._see_through.discount(score, gray, also=self._held.mask)
 
     def forget_in(self, model: Any) -> None:
         """Drop the history of the overlay pixels in ``model`` (a

@@ -215,16 +215,20 @@ class SeeThrough:
             keep[i] = float(np.median(ratio[box][labels[box] == i])) < PIECE_STREAMS
         return keep[labels] if keep.any() else None
 
-    def discount(self, score: np.ndarray, gray: np.ndarray) -> None:
+    def discount(self, score: np.ndarray, gray: np.ndarray, *,
+                 also: Optional[np.ndarray] = None) -> None:
         """Lower, in place, the ``(h, w) float32`` background ``score`` of the overlay's pixels
-        where the frame ``gray`` ((h, w) uint8, as it came) looks as the frames did there (the
-        samples' score, when under 1); then :meth:`remember` the frame."""
+        (and of the ``also`` pixels, (h, w) bool, if given) where the frame ``gray`` ((h, w)
+        uint8, as it came) looks as the frames did there (the samples' score, when under 1);
+        then :meth:`remember` the frame."""
         model = self._as_seen
-        if self.region is not None and model.s is not None and model.s.shape[2:] == gray.shape:
-            x, y, w, h = cv2.boundingRect(self.region.view(np.uint8))
+        region = self.region if also is None or self.region is None else self.region | also
+        region = also if region is None else region
+        if region is not None and model.s is not None and model.s.shape[2:] == gray.shape:
+            x, y, w, h = cv2.boundingRect(region.view(np.uint8))
             box = np.s_[y:y + h, x:x + w]
             seen = model.score_box(gray, box)
-            lower = self.region[box] & (seen <= 1.0) & (seen < score[box])
+            lower = region[box] & (seen <= 1.0) & (seen < score[box])
             score[box][lower] = seen[lower]
         self.remember(gray)
 

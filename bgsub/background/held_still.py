@@ -66,25 +66,36 @@ class HeldStill:
 def _cell_shifts(pixels: np.ndarray, cur: np.ndarray, last: np.ndarray) -> tuple:
     """``(shift, read)``, (gh, gw) float32 and bool: each CELL x CELL cell's Lucas-Kanade shift
     (px, capped at CAP_PX) of its ``pixels`` ((h, w) bool) from ``last`` to ``cur`` ((h, w)
-    uint8), read where the cell holds LEAST of them and their gradients span two directions."""
-    a, b = cur.astype(np.float32), last.astype(np.float32)
+    uint8), read where the cell holds LEAST of them and their gradients span two directions;
+    only the cells around the pixels are read (0, not read, elsewhere)."""
+    h, w = pixels.shape
+    gh, gw = h // CELL, w // CELL
+    shift, read = np.zeros((gh, gw), np.float32), np.zeros((gh, gw), bool)
+    x, y, bw, bh = cv2.boundingRect(pixels[:gh * CELL, :gw * CELL].view(np.uint8))
+    if bw == 0:
+        return shift, read
+    cells = np.s_[y // CELL:-(-(y + bh) // CELL), x // CELL:-(-(x + bw) // CELL)]
+    rows, cols = cells
+    box = np.s_[rows.start * CELL:rows.stop * CELL, cols.start * CELL:cols.stop * CELL]
+    a, b = cur[box].astype(np.float32), last[box].astype(np.float32)
     mean = (a + b) * np.float32(0.5)
     ix = cv2.Sobel(mean, cv2.CV_32F, 1, 0, ksize=3) * np.float32(0.125)
     iy = cv2.Sobel(mean, cv2.CV_32F, 0, 1, ksize=3) * np.float32(0.125)
     it = a - b
-    h, w = pixels.shape
-    gh, gw = h // CELL, w // CELL
-    weight = pixels.astype(np.float32)
+    weight = pixels[box].astype(np.float32)
+    size = (weight.shape[1] // CELL, weight.shape[0] // CELL)
 
-    def per_cell(x: np.ndarray) -> np.ndarray:
-        return (x * weight)[:gh * CELL, :gw * CELL].reshape(gh, CELL, gw, CELL).sum(axis=(1, 3))
+    def per_cell(v: np.ndarray) -> np.ndarray:  # (the cells' means: their sums up to a scale)
+        return cv2.resize(v * weight, size, interpolation=cv2.INTER_AREA)
 
     sxx, sxy, syy = per_cell(ix * ix), per_cell(ix * iy), per_cell(iy * iy)
-    sxt, syt, n = per_cell(ix * it), per_cell(iy * it), per_cell(np.ones_like(ix))
+    sxt, syt = per_cell(ix * it), per_cell(iy * it)
+    n = cv2.resize(weight, size, interpolation=cv2.INTER_AREA) * np.float32(CELL * CELL)
     det = sxx * syy - sxy * sxy
-    read = (n >= LEAST) & (det > 1e-3 * np.maximum(sxx + syy, 1e-6) ** 2)
-    safe = np.where(read, det, 1.0)
+    ok = (n >= LEAST - 0.5) & (det > 1e-3 * np.maximum(sxx + syy, 1e-12) ** 2)
+    safe = np.where(ok, det, 1.0)
     dx = -(syy * sxt - sxy * syt) / safe
     dy = -(sxx * syt - sxy * sxt) / safe
-    shift = np.where(read, np.minimum(np.hypot(dx, dy), CAP_PX), 0.0).astype(np.float32)
+    shift[cells] = np.where(ok, np.minimum(np.hypot(dx, dy), CAP_PX), 0.0)
+    read[cells] = ok
     return shift, read

@@ -26,23 +26,24 @@ def test_sample_model_finds_a_new_object_and_nothing_else():
     assert (score[25:, 25:] == 0).all()
 
 
-def test_sample_model_score_is_the_kth_smallest_sample_distance():
-    rng = np.random.default_rng(0)
-    model = SampleBackground(samples=7, min_matches=3, radius=10)
-    model.reset(rng.integers(0, 256, (12, 15, 3), dtype=np.uint8))
+def _scrambled(seed, shape, **params):
+    """``(model, frame)``: a model of random samples and a random frame, ``shape`` (h, w, 3)."""
+    rng = np.random.default_rng(seed)
+    model = SampleBackground(**params)
+    model.reset(rng.integers(0, 256, shape, dtype=np.uint8))
     model.s[:] = rng.integers(0, 256, model.s.shape, dtype=np.uint8)
-    frame = rng.integers(0, 256, (12, 15, 3), dtype=np.uint8)
+    return model, rng.integers(0, 256, shape, dtype=np.uint8)
+
+
+def test_sample_model_score_is_the_kth_smallest_sample_distance():
+    model, frame = _scrambled(0, (12, 15, 3), samples=7, min_matches=3, radius=10)
     d = np.abs(model.s.astype(int) - frame.transpose(2, 0, 1)[None].astype(int)).max(axis=1)
     expected = np.sort(d, axis=0)[2] / 10.0
     assert np.allclose(model.score(frame), expected)
 
 
 def test_a_box_is_scored_as_the_whole_frame_is_there():
-    rng = np.random.default_rng(1)
-    model = SampleBackground(samples=7, min_matches=2, radius=12)
-    model.reset(rng.integers(0, 256, (20, 30, 3), dtype=np.uint8))
-    model.s[:] = rng.integers(0, 256, model.s.shape, dtype=np.uint8)
-    frame = rng.integers(0, 256, (20, 30, 3), dtype=np.uint8)
+    model, frame = _scrambled(1, (20, 30, 3), samples=7, min_matches=2, radius=12)
     box = np.s_[3:11, 7:25]
     assert np.allclose(model.score_box(frame, box), model.score(frame)[box])
 

@@ -74,8 +74,9 @@ def _cell_shifts(pixels: np.ndarray, cur: np.ndarray, last: np.ndarray) -> tuple
     x, y, bw, bh = cv2.boundingRect(pixels[:gh * CELL, :gw * CELL].view(np.uint8))
     if bw == 0:
         return shift, read
-    cells = np.s_[y // CELL:-(-(y + bh) // CELL), x // CELL:-(-(x + bw) // CELL)]
-    rows, cols = cells
+    rows = slice(y // CELL, -(-(y + bh) // CELL))  # (the cells the pixels' box touches)
+    cols = slice(x // CELL, -(-(x + bw) // CELL))
+    cells = (rows, cols)
     box = np.s_[rows.start * CELL:rows.stop * CELL, cols.start * CELL:cols.stop * CELL]
     a, b = cur[box].astype(np.float32), last[box].astype(np.float32)
     mean = (a + b) * np.float32(0.5)

@@ -222,8 +222,9 @@ class SeeThrough:
         uint8, as it came) looks as the frames did there (the samples' score, when under 1);
         then :meth:`remember` the frame."""
         model = self._as_seen
-        region = self.region if also is None or self.region is None else self.region | also
-        region = also if region is None else region
+        region = self.region
+        if also is not None:
+            region = also if region is None else region | also
         if region is not None and model.s is not None and model.s.shape[2:] == gray.shape:
             x, y, w, h = cv2.boundingRect(region.view(np.uint8))
             box = np.s_[y:y + h, x:x + w]

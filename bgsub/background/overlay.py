@@ -20,7 +20,9 @@ the model (``CompensatedBackground.forget``).
 A semi-transparent overlay (a watermark word) is not left out: the scene and the objects that
 pass under it show through it. :class:`~bgsub.background.see_through.SeeThrough` finds it among
 the pieces sharp in the running mean, and :meth:`OverlayDetector.unveil` maps its pixels back to
-the scene in each frame before the engine looks at it.
+the scene in each frame before the engine looks at it; :meth:`OverlayDetector.discount` lowers
+the background score where the frames repeat it, there and at the repeating pixels that do not
+move at all (:class:`~bgsub.background.held_still.HeldStill`: a word under a shaking camera).
 """
 
 from __future__ import annotations
@@ -60,7 +62,10 @@ class OverlayConfig:
                                    above=0)
     see_through: int = setting(1, "1 = a semi-transparent overlay (a watermark word) is found "
                                   "and taken out of each frame, so that the scene and the "
-                                  "objects under it are watched; 0 = left in the frames",
+                                  "objects under it are watched, and it is background where "
+                                  "the frames repeat it (as are repeating pixels that do not "
+                                  "move at all: a word under a shaking camera); 0 = left in "
+                                  "the frames",
                                low=0, high=1)
 
     def __post_init__(self) -> None:

@@ -13,10 +13,13 @@ object's motion gives a direction of its own each frame); :class:`ParallaxField`
 residuals along it into a per-pixel field of background displacement, ``(h, w, 2) float32``:
 a parallax factor per cell, the median over cells (small objects leave it), remembered in the
 scene's coordinates (a static point keeps its depth from frame to frame; an object that moves
-along the parallax direction does not). Without enough parallax (a still or rotating camera, a
-planar scene) it returns None and the homography alone is the background's motion. A near
-layer that moves too far beyond the plane for the next frame's read is remembered for a second
-read, or guessed where no field stands (:mod:`bgsub.camera.near_layer`).
+along the parallax direction does not). Enough parallax is a share of the vectors' weight, or a
+thin layer across the frame: ahead of the plane (near ground), or lagging behind it, all by one
+share of its step, frame after frame (a far layer, where the fit took a near band for the
+plane). Without enough parallax (a still or rotating camera, a planar scene) it returns None
+and the homography alone is the background's motion. A near layer that moves too far beyond the
+plane for the next frame's read is remembered for a second read, or guessed where no field
+stands (:mod:`bgsub.camera.near_layer`).
 """
 
 from __future__ import annotations
@@ -34,6 +37,9 @@ from bgsub.settings import check_settings, setting
 
 #: A post's cells depart from the 5 x 5 median by more than this (px of parallax).
 POST_GAP = 0.5
+#: A farther layer's vectors move as one: their steps along the plane's, as shares of the plane's
+#: step, lie within this much of each other (the 10th to the 90th percentile).
+FAR_SPREAD = 0.4
 #: After a guessed layer's read is refused (its vectors scatter: water, a crowd), the next
 #: guess waits 1, 2, 4, ... frames, at most this many: a refused read changes nothing but costs
 #: a read.
@@ -58,6 +64,12 @@ class ParallaxConfig:
                                          "the frame along the camera's motion: near ground "
                                          "(0 = off)",
                                    low=0, high=1)
+    parallax_far: int = setting(6, "... or when those that lag behind the plane (a farther "
+                                   "layer: the fit took a near band for the plane) carry "
+                                   "parallax_near of the weight, reach across half the frame "
+                                   "along its motion, move as one, and have done so on each "
+                                   "of this many frames in a row (a subject the camera "
+                                   "follows drifts back for a few frames; 0 = off)", low=0)
     parallax_frames: int = setting(3, "... over this many frames in a row, in one direction "
                                       "(within parallax_angle): a steady camera path", low=1)
     parallax_angle: float = setting(15.0, "the parallax directions of those frames lie "
@@ -208,6 +220,7 @@ class ParallaxField:
         self.layer: Optional[NearLayer] = None  # the last near layer seen ahead of the plane
         self.layer_since = _LONG_AGO  # frames since it was seen
         self.looked = 0  # frames looked at since the start (the last restart)
+        self.far_run = 0  # frames in a row that showed a farther layer (_farther)
         self._probe_wait, self._probe_next = 0, 1  # frames to the next guess; the next wait
 
     def discount_edges(self, score: np.ndarray, violation: Optional[np.ndarray]) -> None:
@@ -240,7 +253,7 @@ class ParallaxField:
         self.path.recent = []
         self.since = self.layer_since = _LONG_AGO
         self.layer = None
-        self.looked = 0
+        self.looked = self.far_run = 0
 
     def standing(self) -> bool:
         """Whether a field was made within the last ``parallax_keep`` frames: a 3-D scene."""
@@ -309,6 +322,9 @@ class ParallaxField:
             self.path.forget()
             return None
         v = _Residuals(points, disp, weights, matrix, self.config.parallax_min)
+        if not self._near_enough(v, v.big):
+            # (a frame with parallax enough without a farther layer neither counts nor breaks)
+            self.far_run = self.far_run + 1 if self._farther(v, v.big) else 0
         e, along = self._direction(v)
         if e is None:
             return None
@@ -339,14 +355,40 @@ class ParallaxField:
         """Whether the vectors ``which`` (N,) bool (with ``among``, (M,) bool, those of them)
         are parallax enough: ``parallax`` of the weight, or ``parallax_near`` in the vectors
         that move ahead of the plane and reach across ``NEAR_REACH`` of the frame along its
-        motion. Near ground, ahead of the plane, may be a thin band of a flat scene; an object
-        that the camera follows lags behind the plane, and one that overtakes it is compact."""
+        motion, or in those that lag behind it as a farther layer (:meth:`_farther`) that has
+        stood for ``parallax_far`` frames. Near ground, ahead of the plane, may be a thin band
+        of a flat scene; an object that the camera follows lags behind the plane, and one that
+        overtakes it is compact."""
+        c = self.config
+        return (self._near_enough(v, which, among)
+                or 0 < c.parallax_far <= self.far_run and self._farther(v, which, among))
+
+    def _near_enough(self, v: "_Residuals", which: np.ndarray,
+                     among: Optional[np.ndarray] = None) -> bool:
+        """:meth:`_enough` without the farther layer: the share, or near ground."""
         c = self.config
         if v.share(which, among) >= c.parallax:
             return True
         near = v.nearer[which] if among is None else v.nearer[which] & among
         return (c.parallax_near > 0 and v.share(which, near) >= c.parallax_near
                 and v.reach(which, near) >= NEAR_REACH)
+
+    def _farther(self, v: "_Residuals", which: np.ndarray,
+                 among: Optional[np.ndarray] = None) -> bool:
+        """Whether the vectors of ``which`` (and ``among``, as in :meth:`_enough`) that lag
+        behind the plane make a farther layer: ``parallax_near`` of the weight, reaching
+        across ``NEAR_REACH`` of the frame along the plane's motion, their steps within
+        :data:`FAR_SPREAD` of each other. When the fit takes a textured near band for the
+        plane over a flat far layer, the far layer's towers lag behind it, all by one share
+        of its step; water round a swan the camera follows lags by scattered amounts."""
+        c = self.config
+        if c.parallax_near == 0 or c.parallax_far == 0:
+            return False
+        far = v.farther[which] if among is None else v.farther[which] & among
+        if v.share(which, far) < c.parallax_near or v.reach(which, far) < NEAR_REACH:
+            return False
+        lo, hi = np.percentile(v.steps(which, far), [10, 90])
+        return float(hi - lo) <= FAR_SPREAD
 
     def _direction(self, v: "_Residuals") -> tuple:
         """``(epipole (3,), along (M,) bool over the big residuals)`` of a steady camera path,
@@ -433,7 +475,8 @@ class _Residuals:
     ``disp``; ``now`` (N, 2), where each point is; ``ok`` (N,) bool, the usable ones; ``big``
     (N,) bool, those that depart by more than ``least`` px; ``nearer`` (N,) bool, those of them
     that move further than the plane in its own direction (a layer nearer than the plane);
-    ``path`` (2,), the plane's mean displacement."""
+    ``farther`` (N,) bool, those that lag behind it; ``path`` (2,), the plane's mean
+    displacement."""
 
     def __init__(self, points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
                  matrix: np.ndarray, least: float) -> None:
@@ -447,6 +490,7 @@ class _Residuals:
         self.big = self.ok & (size > least)
         plane = self.anchors - pts
         self.nearer = self.big & ((self.res * plane).sum(1) > 0)
+        self.farther = self.big & ((self.res * plane).sum(1) < 0)
         self.path = plane[self.ok].mean(0) if self.ok.any() else np.zeros(2)
         self.total = max(float(self.weights[self.ok].sum()), 1e-12)
 
@@ -455,6 +499,15 @@ class _Residuals:
         ``among``, (M,) bool over ``which``'s vectors, those of them)."""
         w = self.weights[which] if among is None else self.weights[which][among]
         return float(w.sum()) / self.total
+
+    def steps(self, which: np.ndarray, among: Optional[np.ndarray] = None) -> np.ndarray:
+        """``(K,) float64``: how far the vectors ``which`` (as in :meth:`share`) move along
+        ``path``, as shares of it (1: with the plane); ones when the plane does not move."""
+        res = self.res[which] if among is None else self.res[which][among]
+        length = float(np.hypot(*self.path))
+        if length == 0.0:
+            return np.ones(len(res))
+        return 1.0 + (res @ (self.path / length)) / length
 
     def reach(self, which: np.ndarray, among: Optional[np.ndarray] = None) -> float:
         """How far the vectors ``which`` (as in :meth:`share`) reach along ``path``, as a share

@@ -21,14 +21,16 @@ def _grid(step=8):
 
 
 def _band_vectors(seed, *, band_speed=2.0, band_top=0.7, object_box=None,
-                  object_disp=(0.0, 0.0)):
+                  object_disp=(0.0, 0.0), band_ramp=0.0):
     """``(points, disp, weights)``: the far layer moving by ``PAN``, the frame below
-    ``band_top`` of its height (a near band) ``band_speed`` times as fast, an object moving by
+    ``band_top`` of its height (a near band) ``band_speed`` times as fast (plus ``band_ramp``
+    times the vector's x from -1/2 to 1/2 across the frame), an object moving by
     ``object_disp`` in ``object_box`` (x0, y0, x1, y1); 0.1 px of noise."""
     rng = np.random.default_rng(seed)
     pts = _grid()
     disp = np.tile(PAN[:2, 2], (len(pts), 1))
-    disp[pts[:, 1] >= band_top * SHAPE[0]] *= band_speed
+    band = pts[:, 1] >= band_top * SHAPE[0]
+    disp[band] *= band_speed + band_ramp * (pts[band, :1] / SHAPE[1] - 0.5)
     if object_box is not None:
         x0, y0, x1, y1 = object_box
         inside = (pts[:, 0] >= x0) & (pts[:, 0] < x1) & (pts[:, 1] >= y0) & (pts[:, 1] < y1)
@@ -79,10 +81,27 @@ def test_a_thin_band_nearer_than_the_plane_is_parallax():
     np.testing.assert_allclose(np.median(field[232:, :, 0]), -2.0, atol=0.2)
 
 
-def test_a_thin_band_that_lags_behind_the_plane_is_not_parallax():
+def test_a_thin_band_that_lags_behind_the_plane_for_a_few_frames_is_not_parallax():
     # (what an object the camera follows looks like: still in the image, the plane moving)
     assert _field(4, band_top=THIN, band_speed=0.0)[1] is None
     assert _field(4, band_top=THIN, band_speed=-1.0)[1] is None
+
+
+def test_a_thin_layer_that_lags_behind_the_plane_frame_after_frame_is_a_farther_layer():
+    # (the fit took a near band for the plane; the far layer's towers lag, all by half its step)
+    frames = ParallaxConfig().parallax_far + 2
+    assert _field(frames - 3, band_top=THIN, band_speed=0.5)[1] is None
+    parallax, field = _field(frames, band_top=THIN, band_speed=0.5)
+    assert field is not None and parallax.far_run == frames
+    np.testing.assert_allclose(np.median(field[232:, :, 0]), 1.0, atol=0.2)  # -1 less -2
+    assert _field(frames, ParallaxConfig(parallax_far=0), band_top=THIN, band_speed=0.5)[1] is None
+
+
+def test_a_lagging_band_whose_vectors_lag_by_many_amounts_is_no_farther_layer():
+    # (water round a subject the camera follows lags behind the plane by scattered amounts)
+    frames = ParallaxConfig().parallax_far + 2
+    assert _field(frames, band_top=THIN, band_speed=0.5, band_ramp=0.2)[1] is not None
+    assert _field(frames, band_top=THIN, band_speed=0.5, band_ramp=1.4)[1] is None
 
 
 def test_a_compact_object_overtaking_the_plane_is_not_parallax():

@@ -34,6 +34,16 @@ class CameraConfig:
                                        "frame's: a still camera's sub-pixel reading noise "
                                        "would resample (blur) the model every frame (0 = warp "
                                        "every frame)", low=0)
+    flat_read: float = setting(0.6, "when the middle 80 % of the fit's inlier weight (each "
+                                    "way) lies in a box whose sides are under this share of "
+                                    "the frame's, and the rest of the frame is flat, the rest "
+                                    "is read densely for the camera's translation: a subject "
+                                    "the camera follows over sky, fog or calm water, the only "
+                                    "thing the patches read (0 = off)", low=0, high=1)
+    flat_correlation: float = setting(0.5, "a dense read of a flat background (flat_read) is "
+                                           "the camera's motion when its correlation is at "
+                                           "least this and it differs from the fit by over a "
+                                           "pixel", low=0, high=1)
 
     def __post_init__(self) -> None:
         check_settings(self)

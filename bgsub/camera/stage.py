@@ -4,8 +4,11 @@ background model is warped by, every decision on the camera's motion in one plac
 Each frame, :meth:`CameraStage.fit_for` hands the front end its fit (RANSAC, or the known
 motion) and prior; :meth:`CameraStage.decide` then takes what the front end measured:
 
-1. a fit seen on only a small region is refused (:class:`~bgsub.camera.rules.SmallRegionRule`)
-   and the camera taken as still; any other refused fit is replaced by the last good one;
+1. a fit whose inliers sit in a compact box is checked by a dense read of the rest of the
+   frame (:class:`~bgsub.camera.flat_read.FlatRead`: a subject followed over a flat
+   background); a fit seen on only a small region is refused
+   (:class:`~bgsub.camera.rules.SmallRegionRule`) and the camera taken as still; any other
+   refused fit is replaced by the last good one;
 2. motion that moves no frame corner by ``still_below`` px is held back and added to the next
    frame's (:class:`~bgsub.camera.rules.MotionHoldBack`);
 3. a frozen model (``learning_rate=0``) is registered to the frame
@@ -19,6 +22,7 @@ from typing import Any, Callable, NamedTuple, Optional, Tuple, Union
 import numpy as np
 
 from bgsub.camera.config import CameraConfig, CameraFit
+from bgsub.camera.flat_read import FlatRead
 from bgsub.camera.known import KnownMotion, NoKnownMotion
 from bgsub.camera.registration import FrozenModelRegistration
 from bgsub.camera.rules import MotionHoldBack, SmallRegionRule, keep_plane
@@ -43,7 +47,7 @@ class CameraStage:
 
     Attributes
     ----------
-    fit, small_region, hold_back, registration, known
+    fit, flat_read, small_region, hold_back, registration, known
         Its parts. :attr:`last_good` is the last frame's fit when it was good, the prior of
         the next frame's reading.
     """
@@ -52,6 +56,9 @@ class CameraStage:
                  known: Union[KnownMotion, NoKnownMotion, None] = None) -> None:
         self.config = config
         self.fit = CameraFit(config)
+        self.flat_read = FlatRead(box_share=config.flat_read,
+                                  least_correlation=config.flat_correlation,
+                                  threshold=config.ransac_threshold)
         self.small_region = SmallRegionRule(config.min_extent)
         self.hold_back = MotionHoldBack(config.still_below)
         self.registration = FrozenModelRegistration(config.motion_model)
@@ -63,6 +70,7 @@ class CameraStage:
         back."""
         self.last_good = None
         self.hold_back.reset()
+        self.flat_read.restart(frame)
 
     def fit_for(self, in_shape: tuple, shape: tuple, *,
                 hold: float = 0.0) -> Tuple[Callable[..., Any], Optional[np.ndarray]]:
@@ -83,7 +91,11 @@ class CameraStage:
         """The :class:`CameraDecision` for the frame ``gray`` ((h, w) uint8) whose motion the
         front end ``measured``; a ``frozen`` ``model`` (the compensated background) is
         registered to the frame."""
-        result, refused = self.small_region.check(measured, gray.shape)
+        result, read = measured, False
+        if isinstance(self.known, NoKnownMotion):
+            result, read = self.flat_read.check(measured, gray, self.last_good)
+        # (a dense read spans the frame outside the box by construction)
+        result, refused = (result, False) if read else self.small_region.check(result, gray.shape)
         matrix, status = self._matrix(result, refused)
         total = self.hold_back.total(matrix)
         if frozen and result.motion.ok:
@@ -97,8 +109,8 @@ class CameraStage:
     def _matrix(self, result: MotionResult, refused: bool) -> Tuple[np.ndarray, str]:
         """``(matrix, status)``: the fit, or for a refused fit the last good motion (the
         identity when refused for its small region: the camera is taken as still)."""
-        if result.motion.ok:
-            return result.motion.matrix, "ok"
+        if result.motion.ok:  # "ok", or how the motion was read (flat_read.FLAT_READ)
+            return result.motion.matrix, result.motion.reason
         status = f"fallback: {result.motion.reason}"
         if refused or self.last_good is None:
             return np.eye(3), status

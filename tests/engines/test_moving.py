@@ -14,6 +14,7 @@ from bgsub.engines.frontends.grbm import GrbmFrontEnd, Reading, RetryWait
 from bgsub.engines.frontends.lucas_kanade import LucasKanadeFrontEnd
 from bgsub.engines.moving import MovingCameraEngine, work_size
 from bgsub.camera import SMALL_REGION, FrozenModelRegistration, spans_frame
+from bgsub.camera.flat_read import FLAT_READ
 from bgsub.samples import SceneSpec, render_frames
 from helpers import OracleMatcher, model_path as _model_path, random_texture as _texture, shifted as _shift
 
@@ -132,11 +133,19 @@ def _followed_over_sky(n=30, pan=6.0, h=180, w=240):
     world += 60 * clouds[..., None]
     world[h + 10:] = rng.integers(0, 255, (70, world.shape[1], 3))
     world = np.clip(world, 0, 255).astype(np.uint8)
+    yield from _follow_in(world, rng, n=n, pan=(pan, 0.0), h=h, w=w)
+
+
+def _follow_in(world, rng, *, n, pan, noise=0.0, h=180, w=240):
+    """``world`` ((H, W, 3) uint8) panned by ``pan`` (dx, dy) px a frame, with ``noise`` and a
+    small textured object that the camera follows (it stays put in the image): (frame, gt)."""
     thing = cv2.resize(rng.integers(0, 255, (8, 10, 3)).astype(np.uint8), (40, 30),
                        interpolation=cv2.INTER_NEAREST)
     for k in range(n):
-        m = np.float32([[1, 0, -20 - pan * k], [0, 1, -40]])
+        m = np.float32([[1, 0, -20 - pan[0] * k], [0, 1, -40 - pan[1] * k]])
         frame = cv2.warpAffine(world, m, (w, h), flags=cv2.INTER_LINEAR)
+        if noise:
+            frame = np.clip(frame + rng.normal(0, noise, frame.shape), 0, 255).astype(np.uint8)
         frame[60:90, 100:140] = thing
         gt = np.zeros((h, w), np.uint8)
         gt[60:90, 100:140] = 255
@@ -146,6 +155,26 @@ def _followed_over_sky(n=30, pan=6.0, h=180, w=240):
 def test_an_object_the_camera_follows_over_a_flat_sky_is_found():
     f, _ = _scored(_engine_with("grbm"), _followed_over_sky(), skip=5)
     assert f > 0.8, f
+
+
+def _followed_through_fog(n=40, pan=(4.0, 1.0), h=180, w=240):
+    """The camera follows a textured object through fog: wide, faint clouds (a median gradient
+    of about 0.6 gray levels a pixel) and nothing else, far too flat for a patch to read."""
+    rng = np.random.default_rng(1)
+    noise = rng.normal(0, 1, (h + 80, w + 8 * n)).astype(np.float32)
+    fog = np.clip(140 + 150 * cv2.GaussianBlur(noise, (0, 0), 8), 0, 255).astype(np.uint8)
+    world = cv2.cvtColor(fog, cv2.COLOR_GRAY2BGR)
+    yield from _follow_in(world, rng, n=n, pan=pan, noise=1.5, h=h, w=w)
+
+
+def test_an_object_the_camera_follows_through_fog_is_found():
+    # Only the subject has texture enough for the patches: the camera's motion is read densely
+    # from the fog (flat_read), and last_status says so.
+    f, statuses = _scored(_engine_with("grbm"), _followed_through_fog(), skip=20)
+    without, _ = _scored(_engine_with("grbm", flat_read=0.0), _followed_through_fog(), skip=20)
+    assert f > 0.8, f
+    assert without < 0.2, without
+    assert FLAT_READ in statuses
 
 
 def _ghost_clip(n=16, pan=2.0, h=180, w=240, band=True):

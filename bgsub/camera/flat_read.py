@@ -29,7 +29,7 @@ from bgsub.camera.rules import shift_of, translation
 from bgsub.motion.global_motion import GlobalMotion
 from bgsub.motion.result import MotionResult
 
-__all__ = ["FLAT_READ", "FlatRead", "inlier_box", "is_flat", "misfit", "outside",
+__all__ = ["FLAT_READ", "FlatRead", "blurred", "inlier_box", "is_flat", "misfit", "outside",
            "read_translation"]
 
 #: ``last_status`` of a frame whose camera motion was read densely from a flat background.
@@ -94,34 +94,39 @@ def is_flat(gray: np.ndarray, keep: np.ndarray) -> bool:
     return float(np.median(gradient[keep > 0])) < 8.0 * FLAT_GRADIENT
 
 
+def blurred(frame: np.ndarray) -> np.ndarray:
+    """``(h, w) float32``: the (h, w) uint8 ``frame`` blurred by :data:`SIGMA`, as both reads
+    take it."""
+    return cv2.GaussianBlur(frame.astype(np.float32), (0, 0), SIGMA)
+
+
 def misfit(previous: np.ndarray, current: np.ndarray, keep: np.ndarray,
            shift: np.ndarray) -> float:
     """The mean squared difference (gray levels squared) between the ``current`` frame and the
-    ``previous`` one moved by ``shift`` (2,), both (h, w) uint8 blurred by :data:`SIGMA`, where
+    ``previous`` one moved by ``shift`` (2,), both (h, w) float32 (:func:`blurred`), where
     ``keep`` ((h, w) uint8) is set and the moved frame has pixels."""
-    a, b = (cv2.GaussianBlur(f.astype(np.float32), (0, 0), SIGMA) for f in (previous, current))
-    h, w = b.shape
+    h, w = current.shape
     m = np.float32([[1, 0, shift[0]], [0, 1, shift[1]]])
-    moved = cv2.warpAffine(a, m, (w, h), flags=cv2.INTER_LINEAR)
-    covered = cv2.warpAffine(np.ones_like(a), m, (w, h), flags=cv2.INTER_LINEAR)
+    moved = cv2.warpAffine(previous, m, (w, h), flags=cv2.INTER_LINEAR)
+    covered = cv2.warpAffine(np.ones_like(previous), m, (w, h), flags=cv2.INTER_LINEAR)
     inside = (keep > 0) & (covered > 0.999)  # (not blended with the border)
     if not inside.any():
         return float("inf")
-    return float(np.mean((moved[inside] - b[inside]) ** 2))
+    return float(np.mean((moved[inside] - current[inside]) ** 2))
 
 
 def read_translation(previous: np.ndarray, current: np.ndarray, keep: np.ndarray, *,
                      start: np.ndarray) -> Optional[Tuple[float, np.ndarray]]:
     """``(correlation, (dx, dy) float64)``: the translation (working px) that takes the
-    ``previous`` frame to the ``current`` one ((h, w) uint8 each) where ``keep`` ((h, w) uint8)
-    is set, by ECC from the translation ``start`` (2,); None when the read does not
-    converge."""
-    a, b = (cv2.GaussianBlur(f.astype(np.float32), (0, 0), SIGMA) for f in (previous, current))
+    ``previous`` frame to the ``current`` one ((h, w) float32 each, :func:`blurred`) where
+    ``keep`` ((h, w) uint8) is set, by ECC from the translation ``start`` (2,); None when the
+    read does not converge."""
     # ECC finds the warp that takes the current frame's pixels to the previous frame's.
     warp = np.float32([[1, 0, -start[0]], [0, 1, -start[1]]])
     stop = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 1e-3)
     try:
-        cc, warp = cv2.findTransformECC(b, a, warp, cv2.MOTION_TRANSLATION, stop, keep, 1)
+        cc, warp = cv2.findTransformECC(current, previous, warp, cv2.MOTION_TRANSLATION, stop,
+                                        keep, 1)
     except cv2.error:  # no convergence, or nothing to correlate (a blank frame)
         return None
     return float(cc), -warp[:, 2].astype(np.float64)
@@ -156,10 +161,11 @@ class FlatRead:
         if keep is None:
             return measured, False
         start = ZERO if last_good is None else shift_of(last_good, gray.shape)[:2, 2]
-        read = read_translation(previous, gray, keep, start=start)
+        frames = (blurred(previous), blurred(gray), keep)
+        read = read_translation(*frames, start=start)
         fitted = shift_of(measured.motion.matrix, gray.shape)[:2, 2] if measured.motion.ok \
             else ZERO
-        if read is None or not self._taken(read, fitted, (previous, gray, keep)):
+        if read is None or not self._taken(read, fitted, frames):
             return measured, False
         shift = read[1]
         inliers = ((np.hypot(*(measured.disp - shift).T) < self.threshold)
@@ -170,7 +176,7 @@ class FlatRead:
     def _taken(self, read: Tuple[float, np.ndarray], fitted: np.ndarray, frames: tuple) -> bool:
         """Whether the ``read`` (correlation, shift (2,)) replaces the ``fitted`` shift (2,):
         clear, different, and no worse than :data:`MISFIT_RATIO` times the fit or no motion
-        on ``frames`` (previous, current, keep)."""
+        on ``frames`` (previous, current: :func:`blurred`; keep)."""
         correlation, shift = read
         if correlation < self.least_correlation or np.hypot(*(shift - fitted)) <= LEAST_DIFFERENCE:
             return False

@@ -65,16 +65,16 @@ def inlier_box(result: MotionResult, shape: tuple) -> Optional[Tuple[int, int, i
     if len(weights) == 0 or weights.sum() <= 0:
         return None
     h, w = shape[:2]
-    lo = [_weighted_quantile(result.points[:, i], weights, 0.1) for i in (0, 1)]
-    hi = [_weighted_quantile(result.points[:, i], weights, 0.9) for i in (0, 1)]
-    return (int(np.clip(lo[0], 0, w - 1)), int(np.clip(lo[1], 0, h - 1)),
-            int(np.clip(hi[0], 0, w - 1)), int(np.clip(hi[1], 0, h - 1)))
+    (x0, x1), (y0, y1) = (_weighted_quantiles(result.points[:, i], weights) for i in (0, 1))
+    return (int(np.clip(x0, 0, w - 1)), int(np.clip(y0, 0, h - 1)),
+            int(np.clip(x1, 0, w - 1)), int(np.clip(y1, 0, h - 1)))
 
 
-def _weighted_quantile(values: np.ndarray, weights: np.ndarray, q: float) -> float:
+def _weighted_quantiles(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """``(2,)``: the 10th and 90th weighted percentiles of ``values`` (N,)."""
     order = np.argsort(values)
     cum = np.cumsum(weights[order])
-    return float(values[order][np.searchsorted(cum, q * cum[-1])])
+    return values[order][np.searchsorted(cum, np.array([0.1, 0.9]) * cum[-1])]
 
 
 def outside(box: Tuple[int, int, int, int], shape: tuple) -> np.ndarray:
@@ -89,8 +89,8 @@ def outside(box: Tuple[int, int, int, int], shape: tuple) -> np.ndarray:
 def is_flat(gray: np.ndarray, keep: np.ndarray) -> bool:
     """Whether the (h, w) uint8 frame ``gray`` is flat where ``keep`` ((h, w) uint8) is set:
     its median gradient there under :data:`FLAT_GRADIENT` (Sobel's gain of 8 taken out)."""
-    blurred = cv2.GaussianBlur(gray.astype(np.float32), (0, 0), 1.0)
-    gradient = np.hypot(cv2.Sobel(blurred, cv2.CV_32F, 1, 0), cv2.Sobel(blurred, cv2.CV_32F, 0, 1))
+    smooth = cv2.GaussianBlur(gray.astype(np.float32), (0, 0), 1.0)
+    gradient = np.hypot(cv2.Sobel(smooth, cv2.CV_32F, 1, 0), cv2.Sobel(smooth, cv2.CV_32F, 0, 1))
     return float(np.median(gradient[keep > 0])) < 8.0 * FLAT_GRADIENT
 
 
@@ -193,4 +193,3 @@ class FlatRead:
             return None
         keep = outside(box, gray.shape)
         return keep if keep.mean() >= LEAST_FREE and is_flat(gray, keep) else None
-

@@ -71,7 +71,8 @@ class GlobalMotion:
         False when the fit was refused; ``matrix`` is then the identity (or the caller's
         fallback) and must not be trusted.
     reason : str
-        ``"ok"`` or why the fit was refused (one short phrase, for ``last_status``).
+        ``"ok"`` or why the fit was refused (one short phrase, for ``last_status``); for a
+        motion read another way, how (``"ok: ..."``, :data:`bgsub.camera.flat_read.FLAT_READ`).
     """
 
     matrix: np.ndarray

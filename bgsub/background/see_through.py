@@ -17,7 +17,12 @@ camera moved), a see-through letter is one
   by the last frame as it was (a subject the camera follows is opaque);
 * whose cells' vectors read off the camera's motion (a mixture of it and none);
 * taken by ``SEEN_FINDS`` looks (a moving object's path is taken for a few frames at most),
-  and, as a whole piece, streamed through (the median of the two explanations' ratio).
+  and, as a whole piece, streamed through (the median of the two explanations' ratio). Where
+  the scene shows through the piece (most of its pixels inside, off the edges, change from
+  frame to frame), the ratio is read there: over a dark sky the letters' own edges, which hold
+  still by construction, are most of a piece whose letters run together, and would outweigh
+  it. The piece's rim (the scene around it) is left out, and a piece with nothing changing
+  inside (a logo, a bar's edge) is judged whole.
 
 The tests look at one frame in ``EVERY`` where the camera moved: a watermark stays for the whole
 video, and footage without one pays a quarter of their cost.
@@ -78,6 +83,13 @@ SEEN_FINDS = 2
 PIECE_STREAMS = 1.2
 #: The frames' temporal mean and spread forget at this rate (at most).
 STATS_RATE = 1.0 / 32
+#: The scene shows through a piece when the median of |frame - last| (its running mean, gray
+#: levels) over its inside (more than INSIDE px from its border: the rim that _letters grows,
+#: and one more) off the edges is at least SHOWS, over LEAST_SHOWING pixels or more; its ratio
+#: is then read over those pixels where it is.
+SHOWS = 1.0
+LEAST_SHOWING = 20
+INSIDE = 4
 #: The pixels around the overlay that stand for the scene under it lie within this many px.
 AROUND_SCENE = 15
 #: A pixel is mapped back where its gain (1 - its opacity) lies in this range: under it the
@@ -176,7 +188,9 @@ class SeeThrough:
         pieces of ``least`` pixels or more."""
         if not self._looked or self._moved is None or self._moved.shape != sharp.shape:
             return
-        letters = _letters(self._candidates(sharp, gradient > EDGE_GRADIENT), least)
+        near_edge = cv2.dilate((gradient > EDGE_GRADIENT).view(np.uint8),
+                               kernel(cv2.MORPH_RECT, EDGE_PX)) > 0
+        letters = _letters(self._candidates(sharp, near_edge), least)
         if letters is not None:
             if self._hits is None:
                 self._hits = np.zeros(sharp.shape, np.float32)
@@ -184,14 +198,15 @@ class SeeThrough:
             letters &= self._hits >= SEEN_FINDS
         if self.region is not None:
             letters = self.region if letters is None else letters | self.region
-        self.region = None if letters is None or not letters.any() else self._streamed(letters)
+        self.region = (None if letters is None or not letters.any() else
+                       self._streamed(letters, near_edge))
         self._map = None if self.region is None else _scene_map(self._mean, self._square,
                                                                  self.region)
 
-    def _candidates(self, sharp: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    def _candidates(self, sharp: np.ndarray, near_edge: np.ndarray) -> np.ndarray:
         """``(h, w) bool``: the ``sharp`` pixels that pass the tests of a see-through letter's
-        edge (see the module's docstring); ``edges``: the running mean's edges, (h, w) bool."""
-        near_edge = cv2.dilate(edges.view(np.uint8), kernel(cv2.MORPH_RECT, EDGE_PX)) > 0
+        edge (see the module's docstring); ``near_edge``: the pixels within EDGE_PX of the
+        running mean's edges, (h, w) bool."""
         s = sharp.astype(np.float32)
         fixed = cv2.blur(self._moved * s, (5, 5)) >= FIXED * cv2.blur(self._still * s, (5, 5))
         off_edges = (~near_edge).astype(np.float32)
@@ -202,9 +217,10 @@ class SeeThrough:
         found = sharp & fixed & (share < OPAQUE) & (around > 0.05)
         return found & (cells_to_pixels(self._off, sharp.shape, self.cell) >= OFF_CAMERA)
 
-    def _streamed(self, pieces: np.ndarray) -> Optional[np.ndarray]:
-        """The ``pieces`` ((h, w) bool) through which the scene streams, judged whole (a
-        subject the camera follows, opaque, is not); None for none."""
+    def _streamed(self, pieces: np.ndarray, near_edge: np.ndarray) -> Optional[np.ndarray]:
+        """The ``pieces`` ((h, w) bool) through which the scene streams, each judged as a
+        piece (a subject the camera follows, opaque, is not) where it shows the scene
+        (:func:`_judged`; ``near_edge``: (h, w) bool, see :meth:`find`); None for none."""
         n, labels, stats, _ = cv2.connectedComponentsWithStats(pieces.view(np.uint8),
                                                                connectivity=8)
         ratio = self._moved / np.maximum(self._still, np.float32(1e-3))
@@ -212,7 +228,8 @@ class SeeThrough:
         for i in range(1, n):
             x, y, w, h = stats[i, :4]
             box = np.s_[y:y + h, x:x + w]
-            keep[i] = float(np.median(ratio[box][labels[box] == i])) < PIECE_STREAMS
+            judged = _judged(labels[box] == i, near_edge[box], self._still[box])
+            keep[i] = float(np.median(ratio[box][judged])) < PIECE_STREAMS
         return keep[labels] if keep.any() else None
 
     def discount(self, score: np.ndarray, gray: np.ndarray, *,
@@ -326,6 +343,18 @@ def _colour(mean: np.ndarray, variance: np.ndarray, scene_mean: np.ndarray,
         return None
     g = gain[readable]
     return float(np.median((mean[readable] - g * scene_mean[readable]) / (1.0 - g)))
+
+
+def _judged(piece: np.ndarray, near_edge: np.ndarray, still: np.ndarray) -> np.ndarray:
+    """The pixels a ``piece`` ((bh, bw) bool) is judged by: where the scene shows through it
+    (SHOWS), the pixels of its inside off the edges (``near_edge``, (bh, bw) bool) that change
+    (``still``: |frame - last|, (bh, bw) float32); else the whole piece."""
+    inside = cv2.erode(piece.view(np.uint8), kernel(cv2.MORPH_RECT, 2 * INSIDE + 1),
+                       borderType=cv2.BORDER_CONSTANT, borderValue=0) > 0
+    off = inside & ~near_edge
+    if np.count_nonzero(off) < LEAST_SHOWING or float(np.median(still[off])) < SHOWS:
+        return piece
+    return off & (still >= SHOWS)
 
 
 def _letters(found: np.ndarray, least: int) -> Optional[np.ndarray]:

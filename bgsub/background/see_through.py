@@ -13,10 +13,8 @@ camera moved), a see-through letter is one
 * whose edge holds still in the frame: there the last frame as it was explains the frame
   clearly better than the last frame moved by the camera (a scene's edge along the camera's path
   moves with the camera);
-* with the scene streaming past on both sides: near its edge, few pixels are explained clearly
-  better (by ``FIXED``) by the last frame as it was (a subject the camera follows is opaque;
-  over a dark or plain sky the sensor's noise is explained about as well either way, and
-  does not count against the letter);
+* with the scene streaming past on both sides: near its edge, few pixels are explained better
+  by the last frame as it was (a subject the camera follows is opaque);
 * whose cells' vectors read off the camera's motion (a mixture of it and none);
 * taken by ``SEEN_FINDS`` looks (a moving object's path is taken for a few frames at most),
   and, as a whole piece, streamed through (the median of the two explanations' ratio). Where
@@ -63,7 +61,7 @@ __all__ = ["SeeThrough"]
 #: |frame - last frame| (averaged over 5 x 5 of the sharp pixels).
 FIXED = 1.5
 #: Within AROUND px of such an edge, under OPAQUE of the pixels off the edges are explained
-#: FIXED times better by the last frame as it was: the scene streams past on both sides.
+#: better by the last frame as it was: the scene streams past on both sides.
 AROUND = 7
 OPAQUE = 0.2
 #: The running mean's edges: its gradient (Sobel, L1) over this; pixels within EDGE_PX (a
@@ -212,7 +210,7 @@ class SeeThrough:
         s = sharp.astype(np.float32)
         fixed = cv2.blur(self._moved * s, (5, 5)) >= FIXED * cv2.blur(self._still * s, (5, 5))
         off_edges = (~near_edge).astype(np.float32)
-        opaque = ((self._moved > FIXED * self._still) & ~near_edge).astype(np.float32)
+        opaque = ((self._moved > self._still) & ~near_edge).astype(np.float32)
         window = (2 * AROUND + 1, 2 * AROUND + 1)
         around = cv2.blur(off_edges, window)
         share = cv2.blur(opaque, window) / np.maximum(around, np.float32(1e-3))

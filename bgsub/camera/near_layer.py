@@ -93,11 +93,12 @@ def leading_layer(field: np.ndarray, matrix: np.ndarray, *,
         return None
     top = size >= np.percentile(size[big], 50)
     shift = np.median(field[top], axis=0).astype(np.float64)
+    region = field[..., 0] * shift[0] + field[..., 1] * shift[1] >= 0.5 * float(shift @ shift)
+    # (the region's reach, not the upper half's: the field's depths vary along the ground)
     path = np.asarray(matrix, np.float64)[:2, 2]
-    if float(shift @ path) <= 0 or _reach(top, path) < NEAR_REACH:
+    if float(shift @ path) <= 0 or _reach(region, path) < NEAR_REACH:
         return None
-    along = field[..., 0] * shift[0] + field[..., 1] * shift[1]
-    return NearLayer(shift, along >= 0.5 * float(shift @ shift))
+    return NearLayer(shift, region)
 
 
 def _reach(where: np.ndarray, path: np.ndarray) -> float:
@@ -121,7 +122,8 @@ def probed_layer(points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
     frame). None when fewer scatter, when they do not reach across ``NEAR_REACH`` of the view
     along that shift (an object is compact), or when the shift is under ``least`` px: a layer
     ahead of a slower plane stays within the read's reach. Its region is the cells of the scattered
-    vectors' ``points``, where :meth:`NearLayer.covers` finds them again.
+    vectors' ``points``, and the lines along the shift that they reach across
+    (:func:`_lines_across`).
 
     Nearer ground moves further in the plane's direction than the plane; twice the plane's
     motion halves the departure of ground that moves up to three times as fast, which the first
@@ -143,4 +145,29 @@ def probed_layer(points: np.ndarray, disp: np.ndarray, weights: np.ndarray,
     region[xy[inside, 1], xy[inside, 0]] = True
     if not region.any() or _reach(region, shift) < NEAR_REACH:
         return None
-    return NearLayer(shift, region, GUESS_SPREAD)
+    return NearLayer(shift, region | _lines_across(region, shift), GUESS_SPREAD)
+
+
+def _lines_across(cells: np.ndarray, shift: np.ndarray) -> np.ndarray:
+    """``(gh, gw) bool``: the lines of the grid along ``shift`` ((2,) px; rows for a sideways
+    shift) whose ``cells`` ((gh, gw) bool) reach across ``NEAR_REACH`` of the line. Near
+    ground is a band along the camera's path, and the first read scatters only part of it:
+    where it is flat or repeats itself (a page of text), the ground reads the plane's motion
+    and stays on the fit. An object is compact along its lines."""
+    u = shift / max(float(np.hypot(*shift)), 1e-12)
+    ys, xs = np.mgrid[0:cells.shape[0], 0:cells.shape[1]]
+    line = np.rint(ys * u[0] - xs * u[1]).astype(np.intp).ravel()
+    line -= line.min()
+    along = (xs * u[0] + ys * u[1]).ravel()
+    held = cells.ravel()
+    return (_extent(line[held], along[held], line.max() + 1)
+            >= NEAR_REACH * _extent(line, along, line.max() + 1))[line].reshape(cells.shape)
+
+
+def _extent(line: np.ndarray, along: np.ndarray, lines: int) -> np.ndarray:
+    """``(lines,) float64``: how far the points ``along`` ((N,) positions) of each of the
+    ``lines`` reach (the greatest less the least; -inf for a line without a point)."""
+    lo, hi = np.full(lines, np.inf), np.full(lines, -np.inf)
+    np.minimum.at(lo, line, along)
+    np.maximum.at(hi, line, along)
+    return hi - lo

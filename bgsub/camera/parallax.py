@@ -119,9 +119,10 @@ class ParallaxConfig:
                                       "the frame best: the cells' field is smooth across an "
                                       "occlusion, the scene is not (0 = the field alone)",
                                    low=0)
-    parallax_probe: float = setting(0.15, "where no parallax field stands and at least this "
-                                          "share of the vectors scatter off the fit by over "
-                                          "1 px, the frame is read a second time pre-warped by "
+    parallax_probe: float = setting(0.15, "where the last frame had no parallax field and at "
+                                          "least this share of the vectors scatter off the fit "
+                                          "by over 1 px, the frame is read a second time "
+                                          "(their lines across the view too) pre-warped by "
                                           "twice the plane's motion, for near ground read "
                                           "wrong from the start (a plane moving at least half "
                                           "parallax_layer px a frame; 0 = off)",
@@ -287,17 +288,19 @@ class ParallaxField:
         return layer
 
     def layer_to_probe(self, result: Any, shape: tuple) -> Optional[NearLayer]:
-        """Where no field stands, the near layer the frame's vectors suggest
+        """Where the last frame had no field, the near layer the frame's vectors suggest
         (:func:`~bgsub.camera.near_layer.probed_layer`) for a second read: ``result`` is the
         front end's :class:`~bgsub.motion.result.MotionResult` of a frame of ``shape``
-        (h, w). None with a field standing, before the field has had ``parallax_frames``
-        frames to stand (the depths it remembers start from the first ones), without a fit,
-        or with ``parallax``, ``parallax_layer`` or ``parallax_probe`` off."""
+        (h, w). None right after a frame with a field, before the field has had
+        ``parallax_frames`` frames to stand (the depths it remembers start from the first
+        ones), without a fit, or with ``parallax``, ``parallax_layer`` or ``parallax_probe``
+        off. A field that stood a few frames ago does not hold the guess back: one too weak
+        to show a layer to read again would leave the ground out of reach meanwhile."""
         c = self.config
         if self._probe_wait > 0:
             self._probe_wait -= 1
             return None
-        if (self.standing() or self.looked < c.parallax_frames or not result.motion.ok
+        if (self.since == 0 or self.looked < c.parallax_frames or not result.motion.ok
                 or 0 in (c.parallax, c.parallax_layer, c.parallax_probe)):
             return None
         return probed_layer(result.points, result.disp, result.weights, result.motion.matrix,

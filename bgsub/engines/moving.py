@@ -399,7 +399,7 @@ class MovingCameraEngine(Engine):
     def _read_layer(self, cur: Any, result: MotionResult, *, prior: Optional[np.ndarray],
                     fit: Any, shape: tuple) -> MotionResult:
         """``result`` with a near layer read a second time: the one a recent parallax field
-        showed, pre-warped from ``prior`` (``parallax_layer``), or, where no field stands,
+        showed, pre-warped from ``prior`` (``parallax_layer``), or, after a frame without one,
         the one the scattered vectors suggest, pre-warped from this fit
         (``parallax_probe``); ``result`` as it is without either."""
         layer = self.parallax.layer_to_read()

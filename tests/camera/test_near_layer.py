@@ -36,6 +36,14 @@ def test_a_band_ahead_of_the_plane_is_a_near_layer_with_its_shift_and_region():
     assert np.allclose(layer.prior(PAN)[:2, 2], (-6.0, 0.0))  # the plane, then the shift
 
 
+def test_a_band_whose_departure_grows_across_the_view_is_one_near_layer():
+    # (its upper half of departures is the right half of the band: the band reaches across)
+    field = _band_field((-1.0, 0.0))
+    field[168:, :, 0] *= np.linspace(3.0, 6.0, SHAPE[1], dtype=np.float32)
+    layer = leading_layer(field, PAN, least=0.75)
+    assert layer is not None and layer.covers(np.array([[8.0, 200.0], [312.0, 200.0]])).all()
+
+
 def test_a_band_lagging_behind_the_plane_is_no_near_layer():
     # (what a subject the camera follows looks like: it departs against the pan)
     assert leading_layer(_band_field((4.0, 0.0)), PAN, least=0.75) is None
@@ -78,6 +86,26 @@ def test_scattered_vectors_across_the_view_suggest_a_layer_twice_as_fast_as_the_
     assert covered[~band].sum() == 0 and covered[band].mean() > 0.8  # (a few read it right)
 
 
+def test_a_guessed_layer_spans_the_lines_along_the_shift_that_its_scattered_vectors_hold():
+    # (every other column of the band reads the plane's motion, as a flat or repeating stretch
+    # of ground does: those vectors do not scatter, yet they are the same layer)
+    pts, disp, weights, band = _scattered(0, share=0.4)
+    on_plane = band & (pts[:, 0] % 16 == 4)
+    disp[on_plane] = PAN[:2, 2]
+    layer = probed_layer(pts, disp, weights, PAN, SHAPE, share=0.15, least=1.5)
+    covered = layer.covers(pts)
+    assert covered[on_plane].all() and not covered[~band].any()
+
+
+def test_a_guessed_layer_leaves_the_lines_of_a_compact_object_out():
+    pts, disp, weights, band = _scattered(0, share=0.4)
+    thing = (np.abs(pts[:, 0] - 100) < 30) & (np.abs(pts[:, 1] - 60) < 30)
+    disp[thing] += (3.0, 0.0)  # an object, off the plane, in the far layer's rows
+    layer = probed_layer(pts, disp, weights, PAN, SHAPE, share=0.15, least=1.5)
+    far = ~band & ~thing
+    assert layer.covers(pts)[band].all() and not layer.covers(pts)[far].any()
+
+
 def test_few_scattered_vectors_or_a_slow_plane_suggest_no_layer():
     pts, disp, weights, _ = _scattered(0, share=0.1)
     assert probed_layer(pts, disp, weights, PAN, SHAPE, share=0.15, least=1.5) is None
@@ -96,6 +124,14 @@ def test_a_layer_is_probed_only_where_no_field_stands_and_the_probe_is_on():
     off = _after(4, 1.0, ParallaxConfig(parallax_probe=0))
     assert off.layer_to_probe(result, SHAPE) is None
     assert _after(4, band_speed=3.0).layer_to_probe(result, SHAPE) is None  # a field stands
+
+
+def test_a_field_that_stood_a_frame_ago_does_not_hold_the_guess_back():
+    pts, disp, weights, _ = _scattered(0)
+    result = MotionResult(pts, disp, weights, GlobalMotion(PAN, np.ones(len(pts), bool), True))
+    parallax = _after(4, band_speed=3.0)
+    parallax.estimate(*_band_vectors(5, band_speed=1.0), PAN, SHAPE)  # no field this frame
+    assert parallax.standing() and parallax.layer_to_probe(result, SHAPE) is not None
 
 
 def test_after_a_refused_guess_the_next_ones_wait_longer():
@@ -139,14 +175,30 @@ def test_the_layer_is_read_again_for_parallax_keep_frames_after_it_was_seen():
     assert parallax.layer is None
 
 
-def _two_layer_clip(n, *, far=2.0, near=8.0, top=172):
+def _printed_lines(h, w, seed):
+    """``(h, w) uint8``: a page, rows of dark glyphs 2-5 px wide on a light ground, with gaps."""
+    rng = np.random.default_rng(seed)
+    page = np.full((h, w), 190, np.float32)
+    for y in range(3, h - 8, 11):
+        x = int(rng.integers(0, 20))
+        while x < w - 8:
+            if rng.random() < 0.15:
+                x += int(rng.integers(20, 60))
+                continue
+            width = int(rng.integers(2, 6))
+            page[y:y + 7, x:x + width] = 60
+            x += width + int(rng.integers(1, 4))
+    return cv2.GaussianBlur(page, (3, 3), 0.7).astype(np.uint8)
+
+
+def _two_layer_clip(n, *, far=2.0, near=8.0, top=172, ground=random_texture):
     """``n`` BGR frames (240 x 320) of a camera translating past near ground: the view's rows
-    from ``top`` down move ``near`` px a frame, the rest ``far`` (4x as fast: 6 px beyond the
-    plane, out of the model's reach from it)."""
+    from ``top`` down (textured by ``ground(h, w, seed)``) move ``near`` px a frame, the rest
+    ``far`` (4x as fast: 6 px beyond the plane, out of the model's reach from it)."""
     h, w = SHAPE
     rng = np.random.default_rng(0)
-    layers = [(random_texture(h, w + int(v * n) + 16, seed=s), v)
-              for s, v in ((1, far), (2, near))]
+    layers = [(texture(h, w + int(v * n) + 16, seed), v)
+              for texture, seed, v in ((random_texture, 1, far), (ground, 2, near))]
     frames = []
     for k in range(n):
         views = [cv2.warpAffine(tex, np.float32([[1, 0, -v * k], [0, 1, 0]]), (w, h),
@@ -186,6 +238,13 @@ def near_ground_from_the_start():
 
 def test_near_ground_read_wrong_from_the_start_stays_background(near_ground_from_the_start):
     assert _ground_foreground(near_ground_from_the_start) < 0.05
+
+
+def test_near_ground_of_printed_lines_read_wrong_from_the_start_stays_background():
+    # (the page's flat ground and repeating glyphs read the plane's motion: only part of the
+    # ground scatters off the fit, and those vectors lie across its rows)
+    frames = _two_layer_clip(60, near=7.0, ground=_printed_lines)
+    assert _ground_foreground(frames) < 0.1
 
 
 def test_without_the_probe_that_ground_is_foreground(near_ground_from_the_start):

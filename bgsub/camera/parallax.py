@@ -13,13 +13,15 @@ object's motion gives a direction of its own each frame); :class:`ParallaxField`
 residuals along it into a per-pixel field of background displacement, ``(h, w, 2) float32``:
 a parallax factor per cell, the median over cells (small objects leave it), remembered in the
 scene's coordinates (a static point keeps its depth from frame to frame; an object that moves
-along the parallax direction does not). Enough parallax is a share of the vectors' weight, or a
-thin layer across the frame: ahead of the plane (near ground), or lagging behind it, all by one
-share of its step, frame after frame (a far layer, where the fit took a near band for the
-plane). Without enough parallax (a still or rotating camera, a planar scene) it returns None
-and the homography alone is the background's motion. A near layer that moves too far beyond the
-plane for the next frame's read is remembered for a second read, or guessed where no field
-stands (:mod:`bgsub.camera.near_layer`).
+along the parallax direction does not). Enough parallax is a share of the vectors' weight that
+reaches across the frame along the camera's motion (a subject the camera follows over a plain
+sky can carry that share alone, but it does not reach across), or a thin layer across the
+frame: ahead of the plane (near ground), or lagging behind it, all by one share of its step,
+frame after frame (a far layer, where the fit took a near band for the plane). Without enough
+parallax (a still or rotating camera, a planar scene) it returns None and the homography alone
+is the background's motion. A near layer that moves too far beyond the plane for the next
+frame's read is remembered for a second read, or guessed where no field stands
+(:mod:`bgsub.camera.near_layer`).
 """
 
 from __future__ import annotations
@@ -56,8 +58,10 @@ class ParallaxConfig:
                                     "parallax field when vectors that depart from the "
                                     "homography by more than parallax_min px along one "
                                     "direction carry at least this share of the vectors' "
-                                    "weight (a camera translating through a 3-D scene; 0 = "
-                                    "homography only)", low=0, high=1)
+                                    "weight and reach across half the frame along the "
+                                    "camera's motion (a camera translating through a 3-D "
+                                    "scene, not a subject it follows; 0 = homography only)",
+                              low=0, high=1)
     parallax_near: float = setting(0.01, "... or when those that depart towards a nearer "
                                          "layer (moving faster than the plane, in its "
                                          "direction) carry this share and reach across half "
@@ -368,9 +372,13 @@ class ParallaxField:
 
     def _near_enough(self, v: "_Residuals", which: np.ndarray,
                      among: Optional[np.ndarray] = None) -> bool:
-        """:meth:`_enough` without the farther layer: the share, or near ground."""
+        """:meth:`_enough` without the farther layer: the share, reaching across
+        ``NEAR_REACH`` of the frame along the plane's motion, or near ground. A subject the
+        camera follows over a plain sky carries much of the weight (the sky's vectors carry
+        little) and lags the plane in one steady direction, as a farther layer does, but it
+        does not reach across the frame."""
         c = self.config
-        if v.share(which, among) >= c.parallax:
+        if v.share(which, among) >= c.parallax and v.reach(which, among) >= NEAR_REACH:
             return True
         near = v.nearer[which] if among is None else v.nearer[which] & among
         return (c.parallax_near > 0 and v.share(which, near) >= c.parallax_near

@@ -109,6 +109,14 @@ def test_a_compact_object_overtaking_the_plane_is_not_parallax():
     assert _field(4, band_speed=1.0, object_box=box, object_disp=(-4.0, 0.0))[1] is None
 
 
+def test_a_compact_subject_the_camera_follows_is_not_parallax():
+    # (held still in the image while the plane pans, it lags the plane in one steady direction;
+    # over a plain sky its vectors carry much of the weight)
+    box = (120, 60, 216, 156)  # 96 x 96 px: 12 % of the vectors, over the `parallax` share
+    for frames in (4, ParallaxConfig().parallax_far + 2):
+        assert _field(frames, band_speed=1.0, object_box=box, object_disp=(0.0, 0.0))[1] is None
+
+
 def test_parallax_near_zero_leaves_a_thin_band_to_the_parallax_share():
     assert _field(4, ParallaxConfig(parallax_near=0.0), band_top=THIN)[1] is None
     assert _field(4, ParallaxConfig(parallax_near=0.0, parallax=0.05), band_top=THIN)[1] is not None

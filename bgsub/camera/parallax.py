@@ -360,12 +360,12 @@ class ParallaxField:
     def _enough(self, v: "_Residuals", which: np.ndarray,
                 among: Optional[np.ndarray] = None) -> bool:
         """Whether the vectors ``which`` (N,) bool (with ``among``, (M,) bool, those of them)
-        are parallax enough: ``parallax`` of the weight, or ``parallax_near`` in the vectors
-        that move ahead of the plane and reach across ``NEAR_REACH`` of the frame along its
-        motion, or in those that lag behind it as a farther layer (:meth:`_farther`) that has
-        stood for ``parallax_far`` frames. Near ground, ahead of the plane, may be a thin band
-        of a flat scene; an object that the camera follows lags behind the plane, and one that
-        overtakes it is compact."""
+        are parallax enough, reaching across ``NEAR_REACH`` of the frame along the plane's
+        motion: ``parallax`` of the weight, or ``parallax_near`` in the vectors that move
+        ahead of the plane, or in those that lag behind it as a farther layer
+        (:meth:`_farther`) that has stood for ``parallax_far`` frames. Near ground, ahead of
+        the plane, may be a thin band of a flat scene; an object that the camera follows lags
+        behind the plane, and one that overtakes it is compact."""
         c = self.config
         return (self._near_enough(v, which, among)
                 or 0 < c.parallax_far <= self.far_run and self._farther(v, which, among))

@@ -7,7 +7,7 @@ from typing import Any, Callable
 import cv2
 import numpy as np
 
-__all__ = ["fast_median", "is_affine", "through_bgra", "warp_image"]
+__all__ = ["fast_median", "is_affine", "through_bgra", "warp_image", "weighted_quantiles"]
 
 
 def fast_median(a: np.ndarray) -> Any:
@@ -24,6 +24,15 @@ def fast_median(a: np.ndarray) -> Any:
     if k % 2:
         return (0.0 + part[half]) / 1.0
     return (0.0 + part[half - 1] + part[half]) / 2.0
+
+
+def weighted_quantiles(values: np.ndarray, weights: np.ndarray, q: Any) -> Any:
+    """The ``q`` quantiles (a scalar or sequence in [0, 1]) of ``values`` (N,), each value
+    counting its ``weights`` (N,), N >= 1 with a positive sum: the smallest value whose
+    cumulative weight reaches ``q`` of the total."""
+    order = np.argsort(values)
+    cum = np.cumsum(weights[order])
+    return values[order][np.searchsorted(cum, np.asarray(q) * cum[-1])]
 
 
 def is_affine(matrix: np.ndarray) -> bool:

@@ -9,7 +9,7 @@ from typing import Optional
 
 import numpy as np
 
-from bgsub._util import fast_median
+from bgsub._util import fast_median, weighted_quantiles
 from bgsub.background.compensated import CompensatedBackground
 from bgsub.background.sample import SampleBackground
 from bgsub.camera.rules import shift_of
@@ -23,13 +23,14 @@ __all__ = ["motion_snr", "SAMPLE_SLACK", "BLIND_BEYOND", "STEADY_PX", "StillCame
 def motion_snr(result: MotionResult, *, min_vectors: int = 8) -> float:
     """How far the fitted camera motion stands out of the motion vectors' disagreement with it:
     the median displacement it predicts at the vectors' positions over the robust standard
-    deviation (1.4826 MAD) of their residuals; 0 without a fit or with fewer than
-    ``min_vectors`` usable vectors.
+    deviation (1.4826 MAD, each residual counting its vector's weight) of their residuals; 0
+    without a fit or with fewer than ``min_vectors`` usable vectors.
 
     A camera moves the whole background rigidly: its motion is many times the residuals
     (panning and shaking cameras: medians 9-100 on the development data). Water or foam seen by
     a still camera drifts coherently enough for RANSAC to fit a "motion", but its vectors
-    scatter about it by about as much (medians 0.5-2.2).
+    scatter about it by about as much (medians 0.5-2.2). The weights keep a plain sky's
+    vectors, which read noise, from passing for that scatter under a camera that pans over it.
     """
     if not result.motion.ok:
         return 0.0
@@ -39,7 +40,8 @@ def motion_snr(result: MotionResult, *, min_vectors: int = 8) -> float:
     pts = result.points[usable].astype(np.float64)
     predicted = apply_homography(result.motion.matrix, pts) - pts
     residual = np.linalg.norm(result.disp[usable] - predicted, axis=1)
-    scatter = 1.4826 * float(fast_median(residual))
+    weights = result.weights[usable].astype(np.float64)
+    scatter = 1.4826 * float(weighted_quantiles(residual, weights, 0.5))
     return float(fast_median(np.linalg.norm(predicted, axis=1))) / max(scatter, 1e-3)
 
 

@@ -25,6 +25,7 @@ from typing import Optional, Tuple
 import cv2
 import numpy as np
 
+from bgsub._util import weighted_quantiles
 from bgsub.camera.rules import shift_of, translation
 from bgsub.motion.global_motion import GlobalMotion
 from bgsub.motion.result import MotionResult
@@ -65,16 +66,10 @@ def inlier_box(result: MotionResult, shape: tuple) -> Optional[Tuple[int, int, i
     if len(weights) == 0 or weights.sum() <= 0:
         return None
     h, w = shape[:2]
-    (x0, x1), (y0, y1) = (_weighted_quantiles(result.points[:, i], weights) for i in (0, 1))
+    (x0, x1), (y0, y1) = (weighted_quantiles(result.points[:, i], weights, (0.1, 0.9))
+                          for i in (0, 1))
     return (int(np.clip(x0, 0, w - 1)), int(np.clip(y0, 0, h - 1)),
             int(np.clip(x1, 0, w - 1)), int(np.clip(y1, 0, h - 1)))
-
-
-def _weighted_quantiles(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
-    """``(2,)``: the 10th and 90th weighted percentiles of ``values`` (N,)."""
-    order = np.argsort(values)
-    cum = np.cumsum(weights[order])
-    return values[order][np.searchsorted(cum, np.array([0.1, 0.9]) * cum[-1])]
 
 
 def outside(box: Tuple[int, int, int, int], shape: tuple) -> np.ndarray:

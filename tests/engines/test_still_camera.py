@@ -16,12 +16,13 @@ from helpers import model_path as _model_path
 # ------------------------------------------------------------------ motion_snr
 
 
-def _result(disp, ok=True, matrix=None):
+def _result(disp, ok=True, matrix=None, weights=None):
     rng = np.random.default_rng(0)
     pts = rng.uniform(0, 200, (len(disp), 2)).astype(np.float32)
     m = np.eye(3) if matrix is None else matrix
     motion = GlobalMotion(m, np.ones(len(disp), bool), ok)
-    return MotionResult(pts, np.asarray(disp, np.float32), np.ones(len(disp), np.float32), motion)
+    weights = np.ones(len(disp)) if weights is None else weights
+    return MotionResult(pts, np.asarray(disp, np.float32), np.asarray(weights, np.float32), motion)
 
 
 def test_a_rigid_pan_stands_out_of_its_vectors_noise():
@@ -36,6 +37,17 @@ def test_a_drift_scattered_like_waves_does_not():
     disp = np.array([2.0, 0.0]) + rng.normal(0, 1.5, (60, 2))
     drift = np.array([[1, 0, 2.0], [0, 1, 0], [0, 0, 1]])
     assert motion_snr(_result(disp, matrix=drift)) < 2
+
+
+def test_a_pan_over_a_plain_sky_stands_out_of_its_reliable_vectors_noise():
+    # (the sky's patches read noise at a fiftieth of the weight of the textured ones)
+    rng = np.random.default_rng(3)
+    disp = np.array([2.0, 0.0]) + rng.normal(0, 0.1, (60, 2))
+    disp[:40] = rng.normal(0, 1.5, (40, 2))
+    weights = np.r_[np.full(40, 0.02), np.full(20, 0.8)]
+    pan = np.array([[1, 0, 2.0], [0, 1, 0], [0, 0, 1]])
+    assert motion_snr(_result(disp, matrix=pan, weights=weights)) > 4
+    assert motion_snr(_result(disp, matrix=pan)) < 2  # (every vector counted alike)
 
 
 def test_no_fit_or_too_few_vectors_has_no_motion_to_stand_out():
